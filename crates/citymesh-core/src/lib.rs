@@ -1,0 +1,10 @@
+//! citymesh-core: the pure, synchronous and deterministic core of citymesh.
+//!
+//! It owns geometry and formats: geographic frames and tile math ([`geo`]), SRTM terrain and the
+//! ground grid ([`terrain`]), and the mesh type with its glTF/GLB writer ([`mesh`]). It performs no
+//! I/O: callers hand it bytes and receive bytes. Nothing here knows about HTTP, files or async.
+
+pub mod geo;
+pub mod mesh;
+pub mod scene;
+pub mod terrain;

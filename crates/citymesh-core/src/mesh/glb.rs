@@ -1,0 +1,154 @@
+//! GLB (binary glTF 2.0) encoding of a [`Mesh`].
+//!
+//! glTF is Y-up: (east, north, up) becomes (x, y, z) = (east, up, -north) (METHOD.md section 8), a
+//! proper rotation, so counter-clockwise triangles stay counter-clockwise. Faces are flat shaded: each
+//! triangle gets its own three vertices with the face normal and the face colour (`COLOR_0`, linear).
+//! There is one primitive per [`Material`]. Positions are f32 relative to the scene origin, which
+//! the file records in `scenes[0].extras.origin` so a client can place it.
+
+use super::{Material, Mesh};
+use serde_json::{Value, json};
+
+/// Where a GLB's local frame sits on the Earth.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GlbOrigin {
+    pub lon: f64,
+    pub lat: f64,
+    /// Metres above mean sea level (the EGM96 geoid, like SRTM heights).
+    pub height: f64,
+}
+
+const ARRAY_BUFFER: u32 = 34962;
+const FLOAT: u32 = 5126;
+const UNSIGNED_BYTE: u32 = 5121;
+
+/// Encodes the mesh as GLB bytes. Degenerate triangles (no area, so no normal) are left out.
+pub fn write_glb(mesh: &Mesh, origin: GlbOrigin) -> Vec<u8> {
+    // Keep only triangles with a usable normal, bucketed by material.
+    let mut buckets: Vec<Vec<(usize, [f32; 3])>> = vec![Vec::new(); Material::ALL.len()];
+    for (t, (&tri, style)) in mesh.triangles.iter().zip(&mesh.styles).enumerate() {
+        if let Some(n) = face_normal(mesh.corners(tri)) {
+            buckets[style.material as usize].push((t, n));
+        }
+    }
+    let vertex_count: usize = buckets.iter().map(|b| b.len() * 3).sum();
+
+    let pos_len = vertex_count * 12;
+    let col_len = vertex_count * 4;
+    let mut bin = vec![0u8; pos_len * 2 + col_len];
+    let (pos_bytes, rest) = bin.split_at_mut(pos_len);
+    let (nor_bytes, col_bytes) = rest.split_at_mut(pos_len);
+
+    let mut materials = Vec::new();
+    let mut primitives = Vec::new();
+    let mut accessors = Vec::new();
+    let mut v = 0usize;
+    for (material, bucket) in Material::ALL.iter().zip(&buckets) {
+        if bucket.is_empty() {
+            continue;
+        }
+        let first = v;
+        let mut min = [f32::INFINITY; 3];
+        let mut max = [f32::NEG_INFINITY; 3];
+        for &(t, n) in bucket {
+            let tri = mesh.triangles[t];
+            let [r, g, b] = mesh.styles[t].colour.to_linear_u8();
+            for i in tri {
+                let [e, north, up] = mesh.positions[i as usize];
+                let p = [e as f32, up as f32, -north as f32];
+                for k in 0..3 {
+                    min[k] = min[k].min(p[k]);
+                    max[k] = max[k].max(p[k]);
+                    pos_bytes[v * 12 + k * 4..v * 12 + k * 4 + 4].copy_from_slice(&p[k].to_le_bytes());
+                    nor_bytes[v * 12 + k * 4..v * 12 + k * 4 + 4].copy_from_slice(&n[k].to_le_bytes());
+                }
+                col_bytes[v * 4..v * 4 + 4].copy_from_slice(&[r, g, b, 255]);
+                v += 1;
+            }
+        }
+        let count = v - first;
+        let a = accessors.len();
+        accessors.push(json!({"bufferView": 0, "byteOffset": first * 12, "componentType": FLOAT,
+            "count": count, "type": "VEC3", "min": min, "max": max}));
+        accessors.push(json!({"bufferView": 1, "byteOffset": first * 12, "componentType": FLOAT,
+            "count": count, "type": "VEC3"}));
+        accessors.push(json!({"bufferView": 2, "byteOffset": first * 4, "componentType": UNSIGNED_BYTE,
+            "normalized": true, "count": count, "type": "VEC4"}));
+        primitives.push(json!({"attributes": {"POSITION": a, "NORMAL": a + 1, "COLOR_0": a + 2},
+            "material": materials.len(), "mode": 4}));
+        materials.push(json!({"name": material.name(), "pbrMetallicRoughness": {
+            "baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.9}}));
+    }
+
+    let extras = json!({"origin": {"lon": origin.lon, "lat": origin.lat, "height": origin.height},
+        "heightReference": "metres above mean sea level (EGM96 geoid, as SRTM)",
+        "axes": "x = east, y = up, z = -north, metres from the origin (local frame on WGS84)"});
+    let generator = concat!("citymesh ", env!("CARGO_PKG_VERSION"));
+    let document = if vertex_count == 0 {
+        json!({"asset": {"version": "2.0", "generator": generator},
+            "scene": 0, "scenes": [{"name": "citymesh", "extras": extras}]})
+    } else {
+        json!({
+            "asset": {"version": "2.0", "generator": generator},
+            "scene": 0,
+            "scenes": [{"name": "citymesh", "nodes": [0], "extras": extras}],
+            "nodes": [{"name": "citymesh", "mesh": 0}],
+            "meshes": [{"name": "citymesh", "primitives": primitives}],
+            "materials": materials,
+            "accessors": accessors,
+            "bufferViews": [
+                {"buffer": 0, "byteOffset": 0, "byteLength": pos_len, "target": ARRAY_BUFFER},
+                {"buffer": 0, "byteOffset": pos_len, "byteLength": pos_len, "target": ARRAY_BUFFER},
+                {"buffer": 0, "byteOffset": pos_len * 2, "byteLength": col_len, "target": ARRAY_BUFFER},
+            ],
+            "buffers": [{"byteLength": bin.len()}],
+        })
+    };
+    encode_glb(&document, bin)
+}
+
+/// The unit normal of a counter-clockwise triangle, mapped to glTF axes, or `None` when the
+/// triangle has no area.
+fn face_normal([a, b, c]: [[f64; 3]; 3]) -> Option<[f32; 3]> {
+    let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+    let w = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+    let n = [u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]];
+    let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+    if !(len > 1e-12) || !len.is_finite() {
+        return None;
+    }
+    // Also require the f32 positions to keep an area, so clients do not see a degenerate triangle.
+    let f = |p: [f64; 3]| p.map(|x| x as f32);
+    let (fa, fb, fc) = (f(a), f(b), f(c));
+    if fa == fb || fb == fc || fa == fc {
+        return None;
+    }
+    let (e, north, up) = (n[0] / len, n[1] / len, n[2] / len);
+    Some([e as f32, up as f32, -north as f32])
+}
+
+/// Wraps a JSON document and a binary buffer into the GLB container.
+fn encode_glb(document: &Value, mut bin: Vec<u8>) -> Vec<u8> {
+    let mut json = serde_json::to_vec(document).expect("a serde_json Value always serialises");
+    while json.len() % 4 != 0 {
+        json.push(b' ');
+    }
+    while bin.len() % 4 != 0 {
+        bin.push(0);
+    }
+    let has_bin = !bin.is_empty();
+    let total = 12 + 8 + json.len() + if has_bin { 8 + bin.len() } else { 0 };
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&json);
+    if has_bin {
+        out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+        out.extend_from_slice(b"BIN\0");
+        out.extend_from_slice(&bin);
+    }
+    out
+}

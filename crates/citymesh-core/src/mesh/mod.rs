@@ -1,0 +1,74 @@
+//! The mesh every generator writes into, and its glTF/GLB encoding.
+//!
+//! Positions are `[east, north, up]` metres in a [`crate::geo::LocalFrame`]; triangles are
+//! counter-clockwise seen from outside; every triangle carries a [`FaceStyle`] (flat shading).
+
+mod colour;
+mod glb;
+
+pub use colour::Rgb;
+pub use glb::{GlbOrigin, write_glb};
+
+/// What a face is, which decides its glTF material.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Material {
+    Ground,
+    Wall,
+    Roof,
+    Floor,
+}
+
+impl Material {
+    /// All materials, in the order the GLB lists them.
+    pub const ALL: [Material; 4] = [Material::Ground, Material::Wall, Material::Roof, Material::Floor];
+
+    /// The glTF material name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Material::Ground => "ground",
+            Material::Wall => "wall",
+            Material::Roof => "roof",
+            Material::Floor => "floor",
+        }
+    }
+}
+
+/// Material and colour of one triangle.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct FaceStyle {
+    pub material: Material,
+    pub colour: Rgb,
+}
+
+/// An indexed triangle mesh in a local metric frame.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Mesh {
+    /// `[east, north, up]` in metres.
+    pub positions: Vec<[f64; 3]>,
+    /// Counter-clockwise seen from outside.
+    pub triangles: Vec<[u32; 3]>,
+    /// One entry per triangle.
+    pub styles: Vec<FaceStyle>,
+}
+
+impl Mesh {
+    /// Adds a vertex and returns its index.
+    #[inline]
+    pub fn push_vertex(&mut self, p: [f64; 3]) -> u32 {
+        self.positions.push(p);
+        (self.positions.len() - 1) as u32
+    }
+
+    /// Adds a triangle.
+    #[inline]
+    pub fn push_triangle(&mut self, t: [u32; 3], style: FaceStyle) {
+        self.triangles.push(t);
+        self.styles.push(style);
+    }
+
+    /// The triangle's corner positions.
+    #[inline]
+    pub fn corners(&self, t: [u32; 3]) -> [[f64; 3]; 3] {
+        t.map(|i| self.positions[i as usize])
+    }
+}

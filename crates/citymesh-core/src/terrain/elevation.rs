@@ -1,0 +1,142 @@
+//! The elevation of any point: cell corners and Equation 1 (METHOD.md sections 1 and 2).
+//!
+//! Coordinates here are in sample units: `u = lon * p`, `v = lat * p` with `p` samples per degree,
+//! so the cell of sample `(i, j)` spans `[i - 0.5, i + 0.5] x [j - 0.5, j + 0.5]`.
+
+use super::model::{ElevationModel, Sample};
+
+/// A cell corner is the average of the valid cells among the (up to) four around it
+/// (METHOD.md section 1). The order of summation is fixed so every caller gets the same bits.
+#[inline]
+pub fn corner_height(cells: [Option<f64>; 4]) -> Option<f64> {
+    let mut sum = 0.0;
+    let mut n = 0u32;
+    for h in cells.into_iter().flatten() {
+        sum += h;
+        n += 1;
+    }
+    (n > 0).then(|| sum / f64::from(n))
+}
+
+/// Equation 1: the height at offset `(du, dv)` from the centre of a cell with centre height `c`
+/// and corners `[sw, se, ne, nw]`, each offset in `[-0.5, 0.5]`.
+///
+/// The cell is cut by its diagonals into four triangles (corner, corner, centre); in the one that
+/// holds the point, with base `A`-`B` and apex `C`:
+/// `P = A + b * (B - A) + h * (2C - (A + B))`, where `b` is the position along `A`-`B` and `h` the
+/// distance from `A`-`B` towards `C`, both in cell units.
+#[inline]
+pub(crate) fn equation_1(c: f64, [sw, se, ne, nw]: [f64; 4], du: f64, dv: f64) -> f64 {
+    let (a, b_corner, b, h) = if du.abs() >= dv.abs() {
+        if du >= 0.0 { (se, ne, dv + 0.5, 0.5 - du) } else { (nw, sw, 0.5 - dv, du + 0.5) }
+    } else if dv >= 0.0 {
+        (ne, nw, 0.5 - du, 0.5 - dv)
+    } else {
+        (sw, se, du + 0.5, dv + 0.5)
+    };
+    let delta_b = b_corner - a; // Equation 1
+    let delta_h = 2.0 * c - (a + b_corner); // Equation 1
+    a + b * delta_b + h * delta_h // Equation 1
+}
+
+/// The cell holding sample-unit coordinate `u`, and the offset from its centre.
+#[inline]
+pub(crate) fn cell_of(u: f64) -> (i64, f64) {
+    let i = (u + 0.5).floor();
+    // Keep the offset in [-0.5, 0.5] even where rounding put u exactly on the upper edge.
+    (i as i64, (u - i).clamp(-0.5, 0.5))
+}
+
+impl ElevationModel {
+    /// The ground height at a point by Equation 1, exactly as the ground mesh has it, or `None` over
+    /// a void cell (where the mesh has a hole). Missing files count as the 0 m fallback plane.
+    pub fn elevation(&self, lon: f64, lat: f64) -> Option<f64> {
+        let p = f64::from(self.per_degree());
+        self.elevation_with(lon * p, lat * p, |i, j| match self.sample(i, j) {
+            Sample::Valid(h) => Some(h),
+            Sample::Void => None,
+            Sample::Missing => Some(0.0),
+        })
+    }
+
+    /// The height to place things at: Equation 1 over samples whose voids are filled with the
+    /// average of the nearest valid samples around them (METHOD.md section 2, decision). Never
+    /// fails: with nothing valid nearby it answers 0 m.
+    pub fn ground_height(&self, lon: f64, lat: f64) -> f64 {
+        let p = f64::from(self.per_degree());
+        self.elevation_with(lon * p, lat * p, |i, j| Some(self.filled_sample(i, j)))
+            .unwrap_or(0.0)
+    }
+
+    fn filled_sample(&self, i: i64, j: i64) -> f64 {
+        match self.sample(i, j) {
+            Sample::Valid(h) => return h,
+            Sample::Missing => return 0.0,
+            Sample::Void => {}
+        }
+        // Grow a square ring around the void until it holds valid samples.
+        for r in 1..=64i64 {
+            let mut sum = 0.0;
+            let mut n = 0u32;
+            for dj in -r..=r {
+                for di in -r..=r {
+                    if di.abs() != r && dj.abs() != r {
+                        continue;
+                    }
+                    if let Sample::Valid(h) = self.sample(i + di, j + dj) {
+                        sum += h;
+                        n += 1;
+                    }
+                }
+            }
+            if n > 0 {
+                return sum / f64::from(n);
+            }
+        }
+        0.0
+    }
+
+    /// Equation 1 at sample-unit coordinates over any sample source (`None` = void).
+    pub(crate) fn elevation_with(
+        &self,
+        u: f64,
+        v: f64,
+        sample: impl Fn(i64, i64) -> Option<f64>,
+    ) -> Option<f64> {
+        let (i, du) = cell_of(u);
+        let (j, dv) = cell_of(v);
+        let c = sample(i, j)?;
+        let corner = |ci: i64, cj: i64| {
+            corner_height([sample(ci, cj), sample(ci + 1, cj), sample(ci, cj + 1), sample(ci + 1, cj + 1)])
+        };
+        // The centre is valid, so each corner has at least one valid cell.
+        let corners = [corner(i - 1, j - 1)?, corner(i, j - 1)?, corner(i, j)?, corner(i - 1, j)?];
+        Some(equation_1(c, corners, du, dv))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn equation_1_meets_every_vertex_of_its_triangles() {
+        let corners = [1.0, 2.0, 4.0, 8.0];
+        let c = 16.0;
+        assert_eq!(equation_1(c, corners, 0.0, 0.0), c);
+        assert_eq!(equation_1(c, corners, -0.5, -0.5), 1.0);
+        assert_eq!(equation_1(c, corners, 0.5, -0.5), 2.0);
+        assert_eq!(equation_1(c, corners, 0.5, 0.5), 4.0);
+        assert_eq!(equation_1(c, corners, -0.5, 0.5), 8.0);
+        // Midpoint of the south edge: halfway between SW and SE.
+        assert_eq!(equation_1(c, corners, 0.0, -0.5), 1.5);
+        // Halfway from the east edge's midpoint (3.0) to the centre (16.0).
+        assert_eq!(equation_1(c, corners, 0.25, 0.0), 9.5);
+    }
+
+    #[test]
+    fn corners_average_only_valid_cells() {
+        assert_eq!(corner_height([Some(1.0), None, Some(3.0), None]), Some(2.0));
+        assert_eq!(corner_height([None; 4]), None);
+    }
+}
