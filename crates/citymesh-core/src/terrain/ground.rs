@@ -214,7 +214,8 @@ fn clip_to_box(polygon: &[ClipVertex], [umin, umax, vmin, vmax]: [f64; 4]) -> Ve
                 }
                 next.push(a);
             }
-            if ia != ib {
+            // A crossing at an endpoint that lies on the line would repeat that endpoint.
+            if ia != ib && coord(&a) != value && coord(&b) != value {
                 next.push(cross_line(a, b, vertical, value, bit));
             }
         }
