@@ -1,1 +1,16 @@
-fn main() {}
+//! The `citymesh` binary: parses the command line and hands over to the library.
+
+use clap::Parser;
+use citymesh::cli::{Cli, Command};
+
+#[tokio::main]
+async fn main() -> anyhow::Result<()> {
+    let cli = Cli::parse();
+    match cli.command.unwrap_or_default() {
+        Command::Serve(args) => citymesh::server::run(args).await,
+        Command::Openapi => {
+            println!("{}", citymesh::routes::openapi_json());
+            Ok(())
+        }
+    }
+}

@@ -11,5 +11,5 @@ mod model;
 
 pub use elevation::corner_height;
 pub use ground::{GroundReport, build_ground};
-pub use hgt::{HgtError, HgtTile, VOID, parse_hgt_name};
+pub use hgt::{HgtError, HgtTile, VOID, hgt_name, parse_hgt_name};
 pub use model::{ElevationModel, Sample, dem_tiles_for};

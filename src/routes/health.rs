@@ -1,0 +1,25 @@
+//! `GET /health`: is the server up, and what data does it have.
+
+use crate::state::AppState;
+use axum::Json;
+use axum::extract::State;
+use serde::Serialize;
+use utoipa::ToSchema;
+
+#[derive(Debug, Serialize, ToSchema)]
+pub struct Health {
+    /// Always `ok` when the server answers.
+    #[schema(example = "ok")]
+    pub status: &'static str,
+    /// The citymesh version.
+    pub version: &'static str,
+    /// Number of SRTM files in the DEM directory.
+    pub dem_files: usize,
+}
+
+/// Liveness and a summary of the configured data.
+#[utoipa::path(get, path = "/health", tag = "service",
+    responses((status = 200, description = "The server is up", body = Health)))]
+pub async fn health(State(state): State<AppState>) -> Json<Health> {
+    Json(Health { status: "ok", version: env!("CARGO_PKG_VERSION"), dem_files: state.dem.file_count() })
+}

@@ -1,0 +1,49 @@
+//! The HTTP surface: one file per resource, all thin. Handlers check their input, ask the
+//! generator or a cache, and shape the response; they never compute geometry themselves.
+
+mod health;
+mod index;
+mod scene;
+mod tiles;
+
+use crate::error::{AppError, ErrorBody};
+use crate::state::AppState;
+use axum::Router;
+use axum::routing::get;
+use tower_http::trace::TraceLayer;
+use utoipa::OpenApi;
+use utoipa_swagger_ui::SwaggerUi;
+
+/// The OpenAPI description of every route.
+#[derive(OpenApi)]
+#[openapi(
+    info(
+        title = "citymesh",
+        description = "3D city meshes (glTF binary) from OpenStreetMap buildings and SRTM terrain, generated on demand."
+    ),
+    paths(health::health, scene::scene_glb, tiles::tile_glb),
+    components(schemas(ErrorBody, health::Health))
+)]
+pub struct ApiDoc;
+
+/// The OpenAPI document as pretty JSON, exactly as served at `/openapi.json`.
+pub fn openapi_json() -> String {
+    ApiDoc::openapi().to_pretty_json().expect("the OpenAPI document always serialises")
+}
+
+/// The whole application, ready to serve or to call in tests with `oneshot`.
+pub fn app(state: AppState) -> Router {
+    Router::new()
+        .route("/", get(index::index))
+        .route("/health", get(health::health))
+        .route("/scene.glb", get(scene::scene_glb))
+        .route("/tiles/{z}/{x}/{y}", get(tiles::tile_glb))
+        .merge(SwaggerUi::new("/docs").url("/openapi.json", ApiDoc::openapi()))
+        .fallback(not_found)
+        .layer(TraceLayer::new_for_http())
+        .with_state(state)
+}
+
+async fn not_found(uri: axum::http::Uri) -> AppError {
+    AppError::not_found("not_found", format!("nothing is served at {}; see /docs for the API", uri.path()))
+}

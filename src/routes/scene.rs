@@ -1,0 +1,63 @@
+//! `GET /scene.glb?bbox=`: the mesh of an area.
+
+use crate::error::{AppError, ErrorBody};
+use crate::generate::{glb_headers, scene_glb as generate_scene};
+use crate::state::AppState;
+use axum::extract::rejection::QueryRejection;
+use axum::extract::{Query, State};
+use axum::response::{IntoResponse, Response};
+use citymesh_core::geo::GeoBbox;
+use serde::Deserialize;
+use utoipa::IntoParams;
+
+#[derive(Debug, Deserialize, IntoParams)]
+#[into_params(parameter_in = Query)]
+pub struct SceneQuery {
+    /// The area as `minLon,minLat,maxLon,maxLat` in WGS84 degrees, e.g. `8.39,49.04,8.41,49.06`.
+    /// Latitudes within ±85.0511; the area may not exceed the server's limit (25 km² by default).
+    pub bbox: Option<String>,
+}
+
+/// The mesh of a bounding box as binary glTF.
+///
+/// Positions are metres in a local east-north-up frame whose origin (the box centre at 0 m above
+/// sea level) is stored in `scenes[0].extras.origin`; glTF axes are x = east, y = up, z = -north.
+/// The response headers `X-Citymesh-*` give the generation time, vertex and triangle counts, and
+/// whether the ground came from the DEM or the flat 0 m fallback.
+#[utoipa::path(get, path = "/scene.glb", tag = "meshes", params(SceneQuery),
+    responses(
+        (status = 200, description = "The scene", content_type = "model/gltf-binary", body = Vec<u8>,
+            headers(
+                ("X-Citymesh-Generation-Ms" = f64, description = "Generation time in milliseconds"),
+                ("X-Citymesh-Vertices" = u64, description = "Vertices of the generated mesh"),
+                ("X-Citymesh-Triangles" = u64, description = "Triangles of the generated mesh"),
+                ("X-Citymesh-Void-Cells" = u64, description = "Ground cells left empty by DEM voids"),
+                ("X-Citymesh-Ground" = String, description = "`dem`, or `flat-fallback; missing=N49E008,...`"),
+            )),
+        (status = 400, description = "The bbox is missing, malformed, inverted, out of range or too large", body = ErrorBody),
+    ))]
+pub async fn scene_glb(
+    State(state): State<AppState>,
+    query: Result<Query<SceneQuery>, QueryRejection>,
+) -> Result<Response, AppError> {
+    let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
+    let bbox = parse_bbox(query.bbox.as_deref(), state.limits.max_bbox_km2)?;
+    let generated = generate_scene(&state, bbox).await?;
+    Ok((glb_headers(Some(&generated.stats)), generated.glb).into_response())
+}
+
+/// Checks a `bbox` parameter against the format and the area limit.
+fn parse_bbox(text: Option<&str>, max_km2: f64) -> Result<GeoBbox, AppError> {
+    let text = text.ok_or_else(|| {
+        AppError::bad_request("missing_bbox", "add ?bbox=minLon,minLat,maxLon,maxLat, e.g. ?bbox=8.39,49.04,8.41,49.06")
+    })?;
+    let bbox: GeoBbox = text.parse().map_err(|e| AppError::bad_request("invalid_bbox", format!("bbox: {e}")))?;
+    let area = bbox.area_km2();
+    if area > max_km2 {
+        return Err(AppError::bad_request(
+            "bbox_too_large",
+            format!("the bbox covers {area:.2} km², more than this server's limit of {max_km2} km²: request a smaller area or tiles"),
+        ));
+    }
+    Ok(bbox)
+}

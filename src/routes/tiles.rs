@@ -1,0 +1,72 @@
+//! `GET /tiles/{z}/{x}/{y}.glb`: Web Mercator XYZ tiles, kept in the SQLite tile cache.
+
+use crate::db::TileKey;
+use crate::error::{AppError, ErrorBody};
+use crate::generate::{glb_headers, scene_glb};
+use crate::state::AppState;
+use axum::extract::rejection::PathRejection;
+use axum::extract::{Path, State};
+use axum::http::{HeaderName, HeaderValue};
+use axum::response::{IntoResponse, Response};
+use citymesh_core::geo::TileCoord;
+
+/// One XYZ tile as binary glTF.
+///
+/// Each tile holds the ground clipped exactly to its bounds, in a local frame whose origin (the
+/// tile centre at 0 m above sea level) is stored in `scenes[0].extras.origin`. Zoom levels
+/// outside the served range (12 to 20 by default) answer 404.
+#[utoipa::path(get, path = "/tiles/{z}/{x}/{y}.glb", tag = "meshes",
+    params(
+        ("z" = u8, Path, description = "Zoom level"),
+        ("x" = u32, Path, description = "Column, 0 at 180° W"),
+        ("y" = u32, Path, description = "Row, 0 at 85.0511° N"),
+    ),
+    responses(
+        (status = 200, description = "The tile", content_type = "model/gltf-binary", body = Vec<u8>,
+            headers(("X-Citymesh-Cache" = String, description = "`hit` when served from the tile cache, else `miss`"))),
+        (status = 400, description = "z, x or y is not a number or out of range", body = ErrorBody),
+        (status = 404, description = "The zoom level is not served, or the format is not .glb", body = ErrorBody),
+    ))]
+pub async fn tile_glb(
+    State(state): State<AppState>,
+    path: Result<Path<(String, String, String)>, PathRejection>,
+) -> Result<Response, AppError> {
+    let Path((z, x, y)) = path.map_err(|e| AppError::bad_request("invalid_tile", e.body_text()))?;
+    let tile = parse_tile(&z, &x, &y)?;
+    let limits = state.limits;
+    if tile.z < limits.min_zoom || tile.z > limits.max_zoom {
+        return Err(AppError::not_found(
+            "zoom_not_served",
+            format!("zoom {} is not served: this server serves zoom {} to {}", tile.z, limits.min_zoom, limits.max_zoom),
+        ));
+    }
+    let key = TileKey {
+        z: tile.z,
+        x: tile.x,
+        y: tile.y,
+        variant: format!("{}-{}", env!("CARGO_PKG_VERSION"), state.dem.fingerprint()),
+    };
+    if let Some(glb) = state.tiles.get(&key).await? {
+        let mut headers = glb_headers(None);
+        headers.insert(HeaderName::from_static("x-citymesh-cache"), HeaderValue::from_static("hit"));
+        return Ok((headers, glb).into_response());
+    }
+    let generated = scene_glb(&state, tile.bounds()).await?;
+    state.tiles.put(&key, &generated.glb).await?;
+    let mut headers = glb_headers(Some(&generated.stats));
+    headers.insert(HeaderName::from_static("x-citymesh-cache"), HeaderValue::from_static("miss"));
+    Ok((headers, generated.glb).into_response())
+}
+
+fn parse_tile(z: &str, x: &str, y: &str) -> Result<TileCoord, AppError> {
+    let Some(y) = y.strip_suffix(".glb") else {
+        return Err(AppError::not_found("unknown_format", format!("'{y}': tiles are served as .glb, e.g. /tiles/16/34297/22492.glb")));
+    };
+    let number = |name: &str, text: &str| {
+        text.parse::<u32>().map_err(|_| {
+            AppError::bad_request("invalid_tile", format!("{name} '{text}' is not a whole number ≥ 0"))
+        })
+    };
+    TileCoord::new(number("z", z)?, number("x", x)?, number("y", y)?)
+        .map_err(|e| AppError::bad_request("invalid_tile", e.to_string()))
+}

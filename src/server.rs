@@ -1,0 +1,74 @@
+//! Start-up and shutdown: logging, the database, the DEM store, the listener, and a graceful stop
+//! on SIGINT or SIGTERM.
+
+use crate::cli::ServeArgs;
+use crate::db::{self, TileStore};
+use crate::dem::DemStore;
+use crate::state::{AppState, Limits};
+use anyhow::Context;
+use std::sync::Arc;
+use tracing_subscriber::EnvFilter;
+
+/// Builds the state a server with these options runs on.
+pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
+    anyhow::ensure!(args.min_zoom <= args.max_zoom, "--min-zoom {} is above --max-zoom {}", args.min_zoom, args.max_zoom);
+    anyhow::ensure!(args.max_zoom <= 30, "--max-zoom {} is above 30", args.max_zoom);
+    anyhow::ensure!(args.max_bbox_km2 > 0.0, "--max-bbox-km2 must be positive");
+    let pool = db::open(&args.cache_db).await.with_context(|| format!("opening the cache database {}", args.cache_db))?;
+    let dem_dir = args.dem_dir.clone();
+    let cache_bytes = args.dem_cache_mb.saturating_mul(1 << 20);
+    let dem = tokio::task::spawn_blocking(move || DemStore::open(&dem_dir, cache_bytes)).await?;
+    Ok(AppState {
+        dem: Arc::new(dem),
+        tiles: TileStore::new(pool),
+        limits: Limits { max_bbox_km2: args.max_bbox_km2, min_zoom: args.min_zoom, max_zoom: args.max_zoom },
+    })
+}
+
+/// Runs `citymesh serve` until SIGINT or SIGTERM.
+pub async fn run(args: ServeArgs) -> anyhow::Result<()> {
+    let filter = EnvFilter::try_new(&args.log_level)
+        .with_context(|| format!("--log-level '{}' is not a valid filter", args.log_level))?;
+    tracing_subscriber::fmt().with_env_filter(filter).init();
+
+    let state = build_state(&args).await?;
+    if state.dem.file_count() == 0 {
+        tracing::warn!(dir = %args.dem_dir.display(), "no SRTM files: the ground is flat at 0 m (pass --dem-dir)");
+    }
+    let listener = tokio::net::TcpListener::bind(args.listen)
+        .await
+        .with_context(|| format!("cannot listen on {}", args.listen))?;
+    let addr = listener.local_addr()?;
+    tracing::info!("citymesh {} listening on http://{addr}/ (API docs at http://{addr}/docs)", env!("CARGO_PKG_VERSION"));
+    axum::serve(listener, crate::routes::app(state)).with_graceful_shutdown(shutdown_signal()).await?;
+    tracing::info!("stopped");
+    Ok(())
+}
+
+async fn shutdown_signal() {
+    let ctrl_c = async {
+        if let Err(e) = tokio::signal::ctrl_c().await {
+            tracing::error!("cannot listen for Ctrl-C: {e}");
+            std::future::pending::<()>().await;
+        }
+    };
+    #[cfg(unix)]
+    let terminate = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut s) => {
+                s.recv().await;
+            }
+            Err(e) => {
+                tracing::error!("cannot listen for SIGTERM: {e}");
+                std::future::pending::<()>().await;
+            }
+        }
+    };
+    #[cfg(not(unix))]
+    let terminate = std::future::pending::<()>();
+    tokio::select! {
+        () = ctrl_c => {},
+        () = terminate => {},
+    }
+    tracing::info!("shutting down: finishing requests in flight");
+}
