@@ -6,6 +6,7 @@ use crate::db::{self, TileStore};
 use crate::dem::DemStore;
 use crate::state::{AppState, Limits};
 use anyhow::Context;
+use std::io::IsTerminal;
 use std::sync::Arc;
 use tracing_subscriber::EnvFilter;
 
@@ -29,7 +30,10 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
 pub async fn run(args: ServeArgs) -> anyhow::Result<()> {
     let filter = EnvFilter::try_new(&args.log_level)
         .with_context(|| format!("--log-level '{}' is not a valid filter", args.log_level))?;
-    tracing_subscriber::fmt().with_env_filter(filter).init();
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_ansi(std::io::stdout().is_terminal())
+        .init();
 
     let state = build_state(&args).await?;
     if state.dem.file_count() == 0 {

@@ -1,0 +1,108 @@
+//! Helpers for the end-to-end tests: real data paths, an app over a temporary database, requests
+//! through the router, and the Khronos glTF Validator.
+#![allow(dead_code)]
+
+use axum::body::Body;
+use axum::http::{HeaderMap, Request, StatusCode};
+use citymesh::cli::ServeArgs;
+use clap::Parser;
+use http_body_util::BodyExt;
+use std::path::{Path, PathBuf};
+use tower::ServiceExt;
+
+/// The real data folder: `CITYMESH_DATA_DIR`, else `../shared/data` beside the project.
+pub fn data_dir() -> PathBuf {
+    let dir = std::env::var_os("CITYMESH_DATA_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data"));
+    assert!(
+        dir.join("dem").is_dir(),
+        "real test data not found at {} (set CITYMESH_DATA_DIR to the folder holding dem/ and osm/)",
+        dir.display()
+    );
+    dir
+}
+
+pub fn dem_dir() -> PathBuf {
+    data_dir().join("dem")
+}
+
+/// A running app over `dem` with a fresh database in `db_dir`.
+pub async fn app_with(dem: &Path, db: &Path, extra: &[&str]) -> axum::Router {
+    let mut argv = vec!["serve", "--dem-dir", dem.to_str().unwrap(), "--cache-db", db.to_str().unwrap()];
+    argv.extend_from_slice(extra);
+    let args = ServeArgs::parse_from(argv);
+    citymesh::app(citymesh::server::build_state(&args).await.unwrap())
+}
+
+pub struct Answer {
+    pub status: StatusCode,
+    pub headers: HeaderMap,
+    pub body: Vec<u8>,
+}
+
+impl Answer {
+    pub fn json(&self) -> serde_json::Value {
+        serde_json::from_slice(&self.body)
+            .unwrap_or_else(|e| panic!("body is not JSON ({e}): {}", String::from_utf8_lossy(&self.body)))
+    }
+    pub fn header(&self, name: &str) -> &str {
+        self.headers.get(name).unwrap_or_else(|| panic!("no {name} header")).to_str().unwrap()
+    }
+}
+
+pub async fn get(app: &axum::Router, uri: &str) -> Answer {
+    let response = app.clone().oneshot(Request::get(uri).body(Body::empty()).unwrap()).await.unwrap();
+    let status = response.status();
+    let headers = response.headers().clone();
+    let body = response.into_body().collect().await.unwrap().to_bytes().to_vec();
+    Answer { status, headers, body }
+}
+
+/// Runs the Khronos glTF Validator on GLB bytes and returns its summary
+/// `{"errors", "warnings", "infos", "hints", "messages"}`.
+pub fn validate_glb(glb: &[u8]) -> serde_json::Value {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("t.glb");
+    std::fs::write(&file, glb).unwrap();
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let out = std::process::Command::new("node")
+        .arg(root.join("scripts/validate-glb.mjs"))
+        .arg(&file)
+        .current_dir(&root)
+        .output()
+        .expect("node must be installed to run the glTF Validator (scripts/test checks this)");
+    assert!(
+        out.status.code() != Some(2),
+        "gltf-validator is not installed: run scripts/test, which runs `npm ci`\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let line = String::from_utf8_lossy(&out.stdout);
+    serde_json::from_str(line.trim()).unwrap_or_else(|e| panic!("validator output ({e}): {line}"))
+}
+
+/// Asserts the validator finds no errors and no warnings.
+pub fn assert_valid_glb(glb: &[u8]) {
+    let report = validate_glb(glb);
+    assert_eq!(report["errors"], 0, "{report}");
+    assert_eq!(report["warnings"], 0, "{report}");
+}
+
+/// Decoded positions of a GLB in the local frame `[east, north, up]`, and its origin.
+pub fn glb_positions(glb: &[u8]) -> (Vec<[f64; 3]>, serde_json::Value) {
+    let gltf = gltf::Gltf::from_slice(glb).expect("a GLB the gltf crate reads");
+    let scene = gltf.default_scene().unwrap();
+    let extras: serde_json::Value = serde_json::from_str(scene.extras().as_ref().unwrap().get()).unwrap();
+    let mut out = Vec::new();
+    if let Some(blob) = gltf.blob.as_deref() {
+        for mesh in gltf.meshes() {
+            for prim in mesh.primitives() {
+                let reader = prim.reader(|_| Some(blob));
+                for [x, y, z] in reader.read_positions().unwrap() {
+                    out.push([f64::from(x), -f64::from(z), f64::from(y)]);
+                }
+            }
+        }
+    }
+    (out, extras["origin"].clone())
+}
