@@ -40,7 +40,11 @@ pub struct ServeArgs {
     pub dem_dir: PathBuf,
 
     /// SQLite file for cached data and generated tiles (created if missing; `:memory:` for none).
-    #[arg(long, env = "CITYMESH_CACHE_DB", default_value = "data/citymesh.sqlite")]
+    #[arg(
+        long,
+        env = "CITYMESH_CACHE_DB",
+        default_value = "data/citymesh.sqlite"
+    )]
     pub cache_db: String,
 
     /// Log filter: error, warn, info, debug, trace, or a tracing directive like `citymesh=debug`.
@@ -80,8 +84,17 @@ mod tests {
 
     #[test]
     fn flags_parse() {
-        let cli = Cli::parse_from(["citymesh", "serve", "--listen", "0.0.0.0:9000", "--dem-dir", "/x"]);
-        let Some(Command::Serve(args)) = cli.command else { panic!() };
+        let cli = Cli::parse_from([
+            "citymesh",
+            "serve",
+            "--listen",
+            "0.0.0.0:9000",
+            "--dem-dir",
+            "/x",
+        ]);
+        let Some(Command::Serve(args)) = cli.command else {
+            panic!()
+        };
         assert_eq!(args.listen.port(), 9000);
         assert_eq!(args.dem_dir, PathBuf::from("/x"));
     }

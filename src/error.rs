@@ -2,9 +2,9 @@
 //! `{"error": "<code>", "detail": "<what to fix>"}` with a fitting status; internal causes go to the
 //! log, never to the client.
 
+use axum::Json;
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
-use axum::Json;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
@@ -15,7 +15,9 @@ pub struct ErrorBody {
     #[schema(example = "invalid_bbox")]
     pub error: String,
     /// What went wrong and how to fix the request.
-    #[schema(example = "minLon 8.41 must be smaller than maxLon 8.39 (the order is minLon,minLat,maxLon,maxLat)")]
+    #[schema(
+        example = "minLon 8.41 must be smaller than maxLon 8.39 (the order is minLon,minLat,maxLon,maxLat)"
+    )]
     pub detail: String,
 }
 
@@ -34,11 +36,17 @@ pub enum AppError {
 
 impl AppError {
     pub fn bad_request(code: &'static str, detail: impl Into<String>) -> Self {
-        Self::BadRequest { code, detail: detail.into() }
+        Self::BadRequest {
+            code,
+            detail: detail.into(),
+        }
     }
 
     pub fn not_found(code: &'static str, detail: impl Into<String>) -> Self {
-        Self::NotFound { code, detail: detail.into() }
+        Self::NotFound {
+            code,
+            detail: detail.into(),
+        }
     }
 
     pub fn internal(cause: impl std::fmt::Display) -> Self {
@@ -56,11 +64,19 @@ impl IntoResponse for AppError {
                 (
                     StatusCode::INTERNAL_SERVER_ERROR,
                     "internal",
-                    "citymesh failed to answer this request; the server log has the cause".to_owned(),
+                    "citymesh failed to answer this request; the server log has the cause"
+                        .to_owned(),
                 )
             }
         };
-        (status, Json(ErrorBody { error: code.to_owned(), detail })).into_response()
+        (
+            status,
+            Json(ErrorBody {
+                error: code.to_owned(),
+                detail,
+            }),
+        )
+            .into_response()
     }
 }
 

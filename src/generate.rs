@@ -41,7 +41,10 @@ pub async fn scene_glb(state: &AppState, bbox: GeoBbox) -> Result<Generated, App
             void_cells: scene.ground.void_cells,
             missing_dem: lookup.missing,
         };
-        Generated { glb: Bytes::from(glb), stats }
+        Generated {
+            glb: Bytes::from(glb),
+            stats,
+        }
     })
     .await?;
     tracing::debug!(%bbox, ms = generated.stats.generation_ms, bytes = generated.glb.len(), "scene generated");
@@ -51,14 +54,20 @@ pub async fn scene_glb(state: &AppState, bbox: GeoBbox) -> Result<Generated, App
 /// The headers every GLB response carries.
 pub fn glb_headers(stats: Option<&GenerationStats>) -> HeaderMap {
     let mut h = HeaderMap::new();
-    h.insert(header::CONTENT_TYPE, HeaderValue::from_static("model/gltf-binary"));
+    h.insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static("model/gltf-binary"),
+    );
     let Some(s) = stats else { return h };
     let mut put = |name: &'static str, value: String| {
         if let Ok(v) = HeaderValue::from_str(&value) {
             h.insert(HeaderName::from_static(name), v);
         }
     };
-    put("x-citymesh-generation-ms", format!("{:.3}", s.generation_ms));
+    put(
+        "x-citymesh-generation-ms",
+        format!("{:.3}", s.generation_ms),
+    );
     put("x-citymesh-vertices", s.vertices.to_string());
     put("x-citymesh-triangles", s.triangles.to_string());
     put("x-citymesh-void-cells", s.void_cells.to_string());

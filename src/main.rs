@@ -1,7 +1,7 @@
 //! The `citymesh` binary: parses the command line and hands over to the library.
 
-use clap::Parser;
 use citymesh::cli::{Cli, Command};
+use clap::Parser;
 
 #[tokio::main]
 async fn main() -> anyhow::Result<()> {

@@ -12,17 +12,32 @@ use tracing_subscriber::EnvFilter;
 
 /// Builds the state a server with these options runs on.
 pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
-    anyhow::ensure!(args.min_zoom <= args.max_zoom, "--min-zoom {} is above --max-zoom {}", args.min_zoom, args.max_zoom);
-    anyhow::ensure!(args.max_zoom <= 30, "--max-zoom {} is above 30", args.max_zoom);
+    anyhow::ensure!(
+        args.min_zoom <= args.max_zoom,
+        "--min-zoom {} is above --max-zoom {}",
+        args.min_zoom,
+        args.max_zoom
+    );
+    anyhow::ensure!(
+        args.max_zoom <= 30,
+        "--max-zoom {} is above 30",
+        args.max_zoom
+    );
     anyhow::ensure!(args.max_bbox_km2 > 0.0, "--max-bbox-km2 must be positive");
-    let pool = db::open(&args.cache_db).await.with_context(|| format!("opening the cache database {}", args.cache_db))?;
+    let pool = db::open(&args.cache_db)
+        .await
+        .with_context(|| format!("opening the cache database {}", args.cache_db))?;
     let dem_dir = args.dem_dir.clone();
     let cache_bytes = args.dem_cache_mb.saturating_mul(1 << 20);
     let dem = tokio::task::spawn_blocking(move || DemStore::open(&dem_dir, cache_bytes)).await?;
     Ok(AppState {
         dem: Arc::new(dem),
         tiles: TileStore::new(pool),
-        limits: Limits { max_bbox_km2: args.max_bbox_km2, min_zoom: args.min_zoom, max_zoom: args.max_zoom },
+        limits: Limits {
+            max_bbox_km2: args.max_bbox_km2,
+            min_zoom: args.min_zoom,
+            max_zoom: args.max_zoom,
+        },
     })
 }
 
@@ -43,8 +58,13 @@ pub async fn run(args: ServeArgs) -> anyhow::Result<()> {
         .await
         .with_context(|| format!("cannot listen on {}", args.listen))?;
     let addr = listener.local_addr()?;
-    tracing::info!("citymesh {} listening on http://{addr}/ (API docs at http://{addr}/docs)", env!("CARGO_PKG_VERSION"));
-    axum::serve(listener, crate::routes::app(state)).with_graceful_shutdown(shutdown_signal()).await?;
+    tracing::info!(
+        "citymesh {} listening on http://{addr}/ (API docs at http://{addr}/docs)",
+        env!("CARGO_PKG_VERSION")
+    );
+    axum::serve(listener, crate::routes::app(state))
+        .with_graceful_shutdown(shutdown_signal())
+        .await?;
     tracing::info!("stopped");
     Ok(())
 }

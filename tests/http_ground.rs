@@ -27,21 +27,35 @@ async fn scene_has_the_real_terrain_and_passes_the_validator() {
     // samples and averages of them, must stay inside.
     let tile = std::fs::read(dem_dir().join("N49E008.hgt")).unwrap();
     let sample = |lat: f64, lon: f64| {
-        let (r, c) = (((50.0 - lat) * 1200.0).round() as usize, ((lon - 8.0) * 1200.0).round() as usize);
+        let (r, c) = (
+            ((50.0 - lat) * 1200.0).round() as usize,
+            ((lon - 8.0) * 1200.0).round() as usize,
+        );
         i16::from_be_bytes([tile[(r * 1201 + c) * 2], tile[(r * 1201 + c) * 2 + 1]])
     };
     let mut lo = i16::MAX;
     let mut hi = i16::MIN;
     for k in 0..=26 {
         for m in 0..=26 {
-            let h = sample(49.04 - 1.0 / 1200.0 + f64::from(k) / 1200.0, 8.39 - 1.0 / 1200.0 + f64::from(m) / 1200.0);
+            let h = sample(
+                49.04 - 1.0 / 1200.0 + f64::from(k) / 1200.0,
+                8.39 - 1.0 / 1200.0 + f64::from(m) / 1200.0,
+            );
             lo = lo.min(h);
             hi = hi.max(h);
         }
     }
-    let (zmin, zmax) = positions.iter().fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p[2]), b.max(p[2])));
-    assert!(zmin >= f64::from(lo) && zmax <= f64::from(hi), "mesh {zmin}..{zmax}, samples {lo}..{hi}");
-    assert!(zmax - zmin > 3.0, "real terrain has relief here: {zmin}..{zmax}");
+    let (zmin, zmax) = positions
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p[2]), b.max(p[2])));
+    assert!(
+        zmin >= f64::from(lo) && zmax <= f64::from(hi),
+        "mesh {zmin}..{zmax}, samples {lo}..{hi}"
+    );
+    assert!(
+        zmax - zmin > 3.0,
+        "real terrain has relief here: {zmin}..{zmax}"
+    );
 }
 
 #[tokio::test]
@@ -68,7 +82,9 @@ async fn tiles_are_cached_in_sqlite_across_restarts() {
     // HEAD answers like GET, without a body.
     let head = tower::ServiceExt::oneshot(
         app.clone(),
-        axum::http::Request::head(uri).body(axum::body::Body::empty()).unwrap(),
+        axum::http::Request::head(uri)
+            .body(axum::body::Body::empty())
+            .unwrap(),
     )
     .await
     .unwrap();
@@ -82,7 +98,10 @@ async fn without_dem_files_the_ground_is_flat_and_says_so() {
     let app = app_with(empty.path(), &db.path().join("c.sqlite"), &[]).await;
     let answer = get(&app, "/scene.glb?bbox=8.39,49.04,8.41,49.06").await;
     assert_eq!(answer.status, StatusCode::OK);
-    assert_eq!(answer.header("x-citymesh-ground"), "flat-fallback; missing=N49E008");
+    assert_eq!(
+        answer.header("x-citymesh-ground"),
+        "flat-fallback; missing=N49E008"
+    );
     assert_valid_glb(&answer.body);
     let (positions, _) = glb_positions(&answer.body);
     assert!(!positions.is_empty());
@@ -111,9 +130,15 @@ async fn gzip_and_zip_files_give_the_same_ground_as_plain_hgt() {
     assert_eq!(gzipped.body, plain.body);
 
     let mut zipped = zip::ZipWriter::new(std::io::Cursor::new(Vec::new()));
-    zipped.start_file("N49E008.hgt", zip::write::SimpleFileOptions::default()).unwrap();
+    zipped
+        .start_file("N49E008.hgt", zip::write::SimpleFileOptions::default())
+        .unwrap();
     zipped.write_all(&raw).unwrap();
-    let zipped = scene_with_file("N49E008.SRTMGL3.hgt.zip", &zipped.finish().unwrap().into_inner()).await;
+    let zipped = scene_with_file(
+        "N49E008.SRTMGL3.hgt.zip",
+        &zipped.finish().unwrap().into_inner(),
+    )
+    .await;
     assert_eq!(zipped.header("x-citymesh-ground"), "dem");
     assert_eq!(zipped.body, plain.body);
 }
@@ -125,12 +150,18 @@ async fn broken_hgt_files_count_as_missing_not_as_garbage() {
     let truncated = scene_with_file("N49E008.hgt", &raw[..raw.len() - 2]).await;
     let padded = scene_with_file("N49E008.hgt", &[&raw[..], &[0]].concat()).await;
     let mut empty_zip = zip::ZipWriter::new(std::io::Cursor::new(Vec::new()));
-    empty_zip.start_file("readme.txt", zip::write::SimpleFileOptions::default()).unwrap();
-    let no_hgt = scene_with_file("N49E008.hgt.zip", &empty_zip.finish().unwrap().into_inner()).await;
+    empty_zip
+        .start_file("readme.txt", zip::write::SimpleFileOptions::default())
+        .unwrap();
+    let no_hgt =
+        scene_with_file("N49E008.hgt.zip", &empty_zip.finish().unwrap().into_inner()).await;
     let not_gzip = scene_with_file("N49E008.hgt.gz", b"this is not gzip").await;
     for answer in [truncated, padded, no_hgt, not_gzip] {
         assert_eq!(answer.status, StatusCode::OK);
-        assert_eq!(answer.header("x-citymesh-ground"), "flat-fallback; missing=N49E008");
+        assert_eq!(
+            answer.header("x-citymesh-ground"),
+            "flat-fallback; missing=N49E008"
+        );
         let (positions, _) = glb_positions(&answer.body);
         assert!(positions.iter().all(|p| p[2] == 0.0));
     }
@@ -143,7 +174,8 @@ async fn served_openapi_matches_the_committed_file() {
     let served = get(&app, "/openapi.json").await;
     assert_eq!(served.status, StatusCode::OK);
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("openapi/openapi.json");
-    let committed: serde_json::Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    let committed: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
     assert_eq!(
         served.json(),
         committed,

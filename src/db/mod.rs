@@ -5,8 +5,8 @@ mod tile_store;
 
 pub use tile_store::{TileKey, TileStore};
 
-use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions};
 use sqlx::SqlitePool;
+use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions};
 use std::str::FromStr;
 
 /// Opens (creating if needed) the database at `location` (a file path, or `:memory:`) and applies
@@ -16,10 +16,10 @@ pub async fn open(location: &str) -> anyhow::Result<SqlitePool> {
     let options = if memory {
         SqliteConnectOptions::from_str("sqlite::memory:")?
     } else {
-        if let Some(parent) = std::path::Path::new(location).parent() {
-            if !parent.as_os_str().is_empty() {
-                std::fs::create_dir_all(parent)?;
-            }
+        if let Some(parent) = std::path::Path::new(location).parent()
+            && !parent.as_os_str().is_empty()
+        {
+            std::fs::create_dir_all(parent)?;
         }
         SqliteConnectOptions::new()
             .filename(location)

@@ -23,13 +23,15 @@ impl TileStore {
     }
 
     pub async fn get(&self, key: &TileKey) -> Result<Option<Bytes>, sqlx::Error> {
-        let row = sqlx::query("SELECT glb FROM generated_tiles WHERE z = ? AND x = ? AND y = ? AND variant = ?")
-            .bind(i64::from(key.z))
-            .bind(i64::from(key.x))
-            .bind(i64::from(key.y))
-            .bind(&key.variant)
-            .fetch_optional(&self.pool)
-            .await?;
+        let row = sqlx::query(
+            "SELECT glb FROM generated_tiles WHERE z = ? AND x = ? AND y = ? AND variant = ?",
+        )
+        .bind(i64::from(key.z))
+        .bind(i64::from(key.x))
+        .bind(i64::from(key.y))
+        .bind(&key.variant)
+        .fetch_optional(&self.pool)
+        .await?;
         Ok(row.map(|r| Bytes::from(r.get::<Vec<u8>, _>(0))))
     }
 
@@ -54,6 +56,9 @@ impl TileStore {
 
     /// Number of stored tiles.
     pub async fn count(&self) -> Result<i64, sqlx::Error> {
-        sqlx::query("SELECT COUNT(*) FROM generated_tiles").fetch_one(&self.pool).await.map(|r| r.get(0))
+        sqlx::query("SELECT COUNT(*) FROM generated_tiles")
+            .fetch_one(&self.pool)
+            .await
+            .map(|r| r.get(0))
     }
 }

@@ -45,9 +45,14 @@ impl DemStore {
                     stack.push(path);
                     continue;
                 }
-                let Some(name) = path.file_name().and_then(|n| n.to_str()) else { continue };
+                let Some(name) = path.file_name().and_then(|n| n.to_str()) else {
+                    continue;
+                };
                 let lower = name.to_ascii_lowercase();
-                if !(lower.ends_with(".hgt") || lower.ends_with(".hgt.gz") || lower.ends_with(".hgt.zip")) {
+                if !(lower.ends_with(".hgt")
+                    || lower.ends_with(".hgt.gz")
+                    || lower.ends_with(".hgt.zip"))
+                {
                     continue;
                 }
                 match parse_hgt_name(name) {
@@ -66,7 +71,12 @@ impl DemStore {
             .max_capacity(cache_bytes)
             .weigher(|_, tile: &Arc<HgtTile>| u32::try_from(tile.byte_size()).unwrap_or(u32::MAX))
             .build();
-        Self { files, cache, broken: Mutex::new(HashMap::new()), fingerprint }
+        Self {
+            files,
+            cache,
+            broken: Mutex::new(HashMap::new()),
+            fingerprint,
+        }
     }
 
     /// Number of indexed files.
@@ -90,21 +100,31 @@ impl DemStore {
                 None => missing.push(citymesh_core::terrain::hgt_name(key.0, key.1)),
             }
         }
-        DemLookup { model: ElevationModel::new(tiles), missing }
+        DemLookup {
+            model: ElevationModel::new(tiles),
+            missing,
+        }
     }
 
     fn tile(&self, key: TileKey) -> Option<Arc<HgtTile>> {
         let path = self.files.get(&key)?;
-        if self.broken.lock().map(|b| b.contains_key(&key)).unwrap_or(false) {
+        if self
+            .broken
+            .lock()
+            .map(|b| b.contains_key(&key))
+            .unwrap_or(false)
+        {
             return None;
         }
-        let loaded = self.cache.try_get_with(key, || -> Result<Arc<HgtTile>, String> {
-            let bytes = read_hgt_bytes(path).map_err(|e| e.to_string())?;
-            let tile = HgtTile::from_bytes(key.0, key.1, &bytes)
-                .map_err(|e| format!("{}: {e}", path.display()))?;
-            tracing::debug!(file = %path.display(), size = tile.size(), "DEM file loaded");
-            Ok(Arc::new(tile))
-        });
+        let loaded = self
+            .cache
+            .try_get_with(key, || -> Result<Arc<HgtTile>, String> {
+                let bytes = read_hgt_bytes(path).map_err(|e| e.to_string())?;
+                let tile = HgtTile::from_bytes(key.0, key.1, &bytes)
+                    .map_err(|e| format!("{}: {e}", path.display()))?;
+                tracing::debug!(file = %path.display(), size = tile.size(), "DEM file loaded");
+                Ok(Arc::new(tile))
+            });
         match loaded {
             Ok(tile) => Some(tile),
             Err(reason) => {

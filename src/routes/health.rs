@@ -21,5 +21,9 @@ pub struct Health {
 #[utoipa::path(get, path = "/health", tag = "service",
     responses((status = 200, description = "The server is up", body = Health)))]
 pub async fn health(State(state): State<AppState>) -> Json<Health> {
-    Json(Health { status: "ok", version: env!("CARGO_PKG_VERSION"), dem_files: state.dem.file_count() })
+    Json(Health {
+        status: "ok",
+        version: env!("CARGO_PKG_VERSION"),
+        dem_files: state.dem.file_count(),
+    })
 }

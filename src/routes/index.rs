@@ -5,7 +5,9 @@ use axum::response::Html;
 pub async fn index() -> Html<&'static str> {
     Html(concat!(
         "<!doctype html><html><head><meta charset=\"utf-8\"><title>citymesh</title></head><body>",
-        "<h1>citymesh ", env!("CARGO_PKG_VERSION"), "</h1>",
+        "<h1>citymesh ",
+        env!("CARGO_PKG_VERSION"),
+        "</h1>",
         "<p>3D city meshes from OpenStreetMap and SRTM, generated on demand.</p><ul>",
         "<li><a href=\"/docs\">API documentation (Swagger UI)</a> and <a href=\"/openapi.json\">openapi.json</a></li>",
         "<li><a href=\"/scene.glb?bbox=8.39,49.04,8.41,49.06\">/scene.glb?bbox=8.39,49.04,8.41,49.06</a> (a GLB of Karlsruhe-Neureut)</li>",

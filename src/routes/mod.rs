@@ -28,7 +28,9 @@ pub struct ApiDoc;
 
 /// The OpenAPI document as pretty JSON, exactly as served at `/openapi.json`.
 pub fn openapi_json() -> String {
-    ApiDoc::openapi().to_pretty_json().expect("the OpenAPI document always serialises")
+    ApiDoc::openapi()
+        .to_pretty_json()
+        .expect("the OpenAPI document always serialises")
 }
 
 /// The whole application, ready to serve or to call in tests with `oneshot`.
@@ -45,5 +47,8 @@ pub fn app(state: AppState) -> Router {
 }
 
 async fn not_found(uri: axum::http::Uri) -> AppError {
-    AppError::not_found("not_found", format!("nothing is served at {}; see /docs for the API", uri.path()))
+    AppError::not_found(
+        "not_found",
+        format!("nothing is served at {}; see /docs for the API", uri.path()),
+    )
 }

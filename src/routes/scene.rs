@@ -49,14 +49,21 @@ pub async fn scene_glb(
 /// Checks a `bbox` parameter against the format and the area limit.
 fn parse_bbox(text: Option<&str>, max_km2: f64) -> Result<GeoBbox, AppError> {
     let text = text.ok_or_else(|| {
-        AppError::bad_request("missing_bbox", "add ?bbox=minLon,minLat,maxLon,maxLat, e.g. ?bbox=8.39,49.04,8.41,49.06")
+        AppError::bad_request(
+            "missing_bbox",
+            "add ?bbox=minLon,minLat,maxLon,maxLat, e.g. ?bbox=8.39,49.04,8.41,49.06",
+        )
     })?;
-    let bbox: GeoBbox = text.parse().map_err(|e| AppError::bad_request("invalid_bbox", format!("bbox: {e}")))?;
+    let bbox: GeoBbox = text
+        .parse()
+        .map_err(|e| AppError::bad_request("invalid_bbox", format!("bbox: {e}")))?;
     let area = bbox.area_km2();
     if area > max_km2 {
         return Err(AppError::bad_request(
             "bbox_too_large",
-            format!("the bbox covers {area:.2} km², more than this server's limit of {max_km2} km²: request a smaller area or tiles"),
+            format!(
+                "the bbox covers {area:.2} km², more than this server's limit of {max_km2} km²: request a smaller area or tiles"
+            ),
         ));
     }
     Ok(bbox)

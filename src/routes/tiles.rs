@@ -37,7 +37,10 @@ pub async fn tile_glb(
     if tile.z < limits.min_zoom || tile.z > limits.max_zoom {
         return Err(AppError::not_found(
             "zoom_not_served",
-            format!("zoom {} is not served: this server serves zoom {} to {}", tile.z, limits.min_zoom, limits.max_zoom),
+            format!(
+                "zoom {} is not served: this server serves zoom {} to {}",
+                tile.z, limits.min_zoom, limits.max_zoom
+            ),
         ));
     }
     let key = TileKey {
@@ -48,23 +51,35 @@ pub async fn tile_glb(
     };
     if let Some(glb) = state.tiles.get(&key).await? {
         let mut headers = glb_headers(None);
-        headers.insert(HeaderName::from_static("x-citymesh-cache"), HeaderValue::from_static("hit"));
+        headers.insert(
+            HeaderName::from_static("x-citymesh-cache"),
+            HeaderValue::from_static("hit"),
+        );
         return Ok((headers, glb).into_response());
     }
     let generated = scene_glb(&state, tile.bounds()).await?;
     state.tiles.put(&key, &generated.glb).await?;
     let mut headers = glb_headers(Some(&generated.stats));
-    headers.insert(HeaderName::from_static("x-citymesh-cache"), HeaderValue::from_static("miss"));
+    headers.insert(
+        HeaderName::from_static("x-citymesh-cache"),
+        HeaderValue::from_static("miss"),
+    );
     Ok((headers, generated.glb).into_response())
 }
 
 fn parse_tile(z: &str, x: &str, y: &str) -> Result<TileCoord, AppError> {
     let Some(y) = y.strip_suffix(".glb") else {
-        return Err(AppError::not_found("unknown_format", format!("'{y}': tiles are served as .glb, e.g. /tiles/16/34297/22492.glb")));
+        return Err(AppError::not_found(
+            "unknown_format",
+            format!("'{y}': tiles are served as .glb, e.g. /tiles/16/34297/22492.glb"),
+        ));
     };
     let number = |name: &str, text: &str| {
         text.parse::<u32>().map_err(|_| {
-            AppError::bad_request("invalid_tile", format!("{name} '{text}' is not a whole number ≥ 0"))
+            AppError::bad_request(
+                "invalid_tile",
+                format!("{name} '{text}' is not a whole number ≥ 0"),
+            )
         })
     };
     TileCoord::new(number("z", z)?, number("x", x)?, number("y", y)?)

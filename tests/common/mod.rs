@@ -29,7 +29,13 @@ pub fn dem_dir() -> PathBuf {
 
 /// A running app over `dem` with a fresh database in `db_dir`.
 pub async fn app_with(dem: &Path, db: &Path, extra: &[&str]) -> axum::Router {
-    let mut argv = vec!["serve", "--dem-dir", dem.to_str().unwrap(), "--cache-db", db.to_str().unwrap()];
+    let mut argv = vec![
+        "serve",
+        "--dem-dir",
+        dem.to_str().unwrap(),
+        "--cache-db",
+        db.to_str().unwrap(),
+    ];
     argv.extend_from_slice(extra);
     let args = ServeArgs::parse_from(argv);
     citymesh::app(citymesh::server::build_state(&args).await.unwrap())
@@ -43,20 +49,42 @@ pub struct Answer {
 
 impl Answer {
     pub fn json(&self) -> serde_json::Value {
-        serde_json::from_slice(&self.body)
-            .unwrap_or_else(|e| panic!("body is not JSON ({e}): {}", String::from_utf8_lossy(&self.body)))
+        serde_json::from_slice(&self.body).unwrap_or_else(|e| {
+            panic!(
+                "body is not JSON ({e}): {}",
+                String::from_utf8_lossy(&self.body)
+            )
+        })
     }
     pub fn header(&self, name: &str) -> &str {
-        self.headers.get(name).unwrap_or_else(|| panic!("no {name} header")).to_str().unwrap()
+        self.headers
+            .get(name)
+            .unwrap_or_else(|| panic!("no {name} header"))
+            .to_str()
+            .unwrap()
     }
 }
 
 pub async fn get(app: &axum::Router, uri: &str) -> Answer {
-    let response = app.clone().oneshot(Request::get(uri).body(Body::empty()).unwrap()).await.unwrap();
+    let response = app
+        .clone()
+        .oneshot(Request::get(uri).body(Body::empty()).unwrap())
+        .await
+        .unwrap();
     let status = response.status();
     let headers = response.headers().clone();
-    let body = response.into_body().collect().await.unwrap().to_bytes().to_vec();
-    Answer { status, headers, body }
+    let body = response
+        .into_body()
+        .collect()
+        .await
+        .unwrap()
+        .to_bytes()
+        .to_vec();
+    Answer {
+        status,
+        headers,
+        body,
+    }
 }
 
 /// Runs the Khronos glTF Validator on GLB bytes and returns its summary
@@ -92,7 +120,8 @@ pub fn assert_valid_glb(glb: &[u8]) {
 pub fn glb_positions(glb: &[u8]) -> (Vec<[f64; 3]>, serde_json::Value) {
     let gltf = gltf::Gltf::from_slice(glb).expect("a GLB the gltf crate reads");
     let scene = gltf.default_scene().unwrap();
-    let extras: serde_json::Value = serde_json::from_str(scene.extras().as_ref().unwrap().get()).unwrap();
+    let extras: serde_json::Value =
+        serde_json::from_str(scene.extras().as_ref().unwrap().get()).unwrap();
     let mut out = Vec::new();
     if let Some(blob) = gltf.blob.as_deref() {
         for mesh in gltf.meshes() {

@@ -20,7 +20,11 @@ impl Scene {
         let frame = LocalFrame::new(lon, lat, 0.0);
         let mut mesh = Mesh::default();
         let ground = build_ground(model, bbox, &frame, &mut mesh);
-        Self { frame, mesh, ground }
+        Self {
+            frame,
+            mesh,
+            ground,
+        }
     }
 
     /// The scene as GLB bytes, with its origin recorded in the file.

@@ -21,7 +21,8 @@ pub fn data_dir() -> PathBuf {
 /// Reads and parses one HGT file of `dem/`.
 pub fn hgt(name: &str) -> Arc<HgtTile> {
     let path = data_dir().join("dem").join(name);
-    let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
+    let bytes =
+        std::fs::read(&path).unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
     let (lat, lon) = parse_hgt_name(name).unwrap();
     Arc::new(HgtTile::from_bytes(lat, lon, &bytes).unwrap())
 }

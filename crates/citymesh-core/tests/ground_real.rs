@@ -13,12 +13,20 @@ use std::sync::Arc;
 #[test]
 fn spot_heights_match_the_data_readme() {
     let m = model(&["N49E008.hgt"]);
-    assert_eq!(m.nearest_sample(8.4044, 49.0135), Some(118.0), "Karlsruhe palace");
+    assert_eq!(
+        m.nearest_sample(8.4044, 49.0135),
+        Some(118.0),
+        "Karlsruhe palace"
+    );
     // The data README and the issue say 127 m here, but the nearest sample (row 1080, column 240
     // of N49E008.hgt) holds 126 m, and the file's own source, the srtm-embedded crate, asserts 126
     // in its tests; its neighbours are 118..137, none 127. The bytes win.
     assert_eq!(m.nearest_sample(8.2, 49.1), Some(126.0));
-    assert_eq!(m.nearest_sample(8.21, 49.1), Some(116.0), "srtm-embedded's second test point");
+    assert_eq!(
+        m.nearest_sample(8.21, 49.1),
+        Some(116.0),
+        "srtm-embedded's second test point"
+    );
     let nbg = model(&["N49E011.hgt"]);
     // Nuremberg castle, 49.4577 N 11.0757 E: 334 m.
     assert_eq!(nbg.nearest_sample(11.0757, 49.4577), Some(334.0));
@@ -35,11 +43,17 @@ fn area2d(mesh: &Mesh, t: [u32; 3]) -> f64 {
 fn assert_continuous(mesh: &Mesh, bbox: &GeoBbox, frame: &LocalFrame) {
     let mut seen = HashSet::new();
     for p in &mesh.positions {
-        assert!(seen.insert([p[0].to_bits(), p[1].to_bits()]), "duplicated vertex at {p:?}");
+        assert!(
+            seen.insert([p[0].to_bits(), p[1].to_bits()]),
+            "duplicated vertex at {p:?}"
+        );
     }
     let mut edges: HashMap<(u32, u32), i32> = HashMap::new();
     for &t in &mesh.triangles {
-        assert!(area2d(mesh, t) > 0.0, "triangle {t:?} is not counter-clockwise");
+        assert!(
+            area2d(mesh, t) > 0.0,
+            "triangle {t:?} is not counter-clockwise"
+        );
         for k in 0..3 {
             let (a, b) = (t[k], t[(k + 1) % 3]);
             *edges.entry((a.min(b), a.max(b))).or_default() += 1;
@@ -48,13 +62,19 @@ fn assert_continuous(mesh: &Mesh, bbox: &GeoBbox, frame: &LocalFrame) {
     let [w, s, _] = frame.to_local(bbox.min_lon(), bbox.min_lat(), 0.0);
     let [e, n, _] = frame.to_local(bbox.max_lon(), bbox.max_lat(), 0.0);
     let on_border = |p: [f64; 3]| {
-        (p[0] - w).abs() < 1e-6 || (p[0] - e).abs() < 1e-6 || (p[1] - s).abs() < 1e-6 || (p[1] - n).abs() < 1e-6
+        (p[0] - w).abs() < 1e-6
+            || (p[0] - e).abs() < 1e-6
+            || (p[1] - s).abs() < 1e-6
+            || (p[1] - n).abs() < 1e-6
     };
     for (&(a, b), &count) in &edges {
         let (pa, pb) = (mesh.positions[a as usize], mesh.positions[b as usize]);
         match count {
             2 => {}
-            1 => assert!(on_border(pa) && on_border(pb), "open edge inside the box: {pa:?} - {pb:?}"),
+            1 => assert!(
+                on_border(pa) && on_border(pb),
+                "open edge inside the box: {pa:?} - {pb:?}"
+            ),
             _ => panic!("edge {pa:?} - {pb:?} is shared by {count} triangles"),
         }
     }
@@ -75,14 +95,27 @@ fn ground_across_the_9e_file_seam_is_one_continuous_mesh() {
     assert_continuous(&scene.mesh, &bbox, &scene.frame);
 
     // No missing triangles: together they cover exactly the box.
-    let covered: f64 = scene.mesh.triangles.iter().map(|&t| area2d(&scene.mesh, t)).sum();
+    let covered: f64 = scene
+        .mesh
+        .triangles
+        .iter()
+        .map(|&t| area2d(&scene.mesh, t))
+        .sum();
     let [w, s, _] = scene.frame.to_local(8.98, 49.10, 0.0);
     let [e, n, _] = scene.frame.to_local(9.02, 49.12, 0.0);
-    assert!((covered / ((e - w) * (n - s)) - 1.0).abs() < 1e-9, "covered {covered}");
+    assert!(
+        (covered / ((e - w) * (n - s)) - 1.0).abs() < 1e-9,
+        "covered {covered}"
+    );
 
     // The seam column 9.0 E holds one cell centre per row, and the cells of 9.0 E each once.
     let x_seam = scene.frame.to_local(9.0, 49.11, 0.0)[0];
-    let seam: Vec<_> = scene.mesh.positions.iter().filter(|p| (p[0] - x_seam).abs() < 1e-6).collect();
+    let seam: Vec<_> = scene
+        .mesh
+        .positions
+        .iter()
+        .filter(|p| (p[0] - x_seam).abs() < 1e-6)
+        .collect();
     // Rows 49.10..49.12 at 1/1200 degree: rows 58920..=58944 are 25 centres.
     assert_eq!(seam.len(), 25);
     for p in seam {
@@ -110,8 +143,10 @@ fn voids_of_n42e001_leave_holes_not_spikes() {
     let (mut best, mut best_n) = ((0, 0), 0);
     for r in (10..1190).step_by(20) {
         for c in (10..1190).step_by(20) {
-            let n = (0..20).flat_map(|dr| (0..20).map(move |dc| (dr, dc)))
-                .filter(|&(dr, dc)| tile.raw(r + dr, c + dc) == Some(VOID)).count();
+            let n = (0..20)
+                .flat_map(|dr| (0..20).map(move |dc| (dr, dc)))
+                .filter(|&(dr, dc)| tile.raw(r + dr, c + dc) == Some(VOID))
+                .count();
             if n > best_n {
                 (best, best_n) = ((r, c), n);
             }
@@ -119,18 +154,31 @@ fn voids_of_n42e001_leave_holes_not_spikes() {
     }
     assert!(best_n > 20, "expected a void cluster, found {best_n}");
     let (r, c) = best;
-    let bbox = GeoBbox::new(1.0 + c as f64 / 1200.0, 42.0 + r as f64 / 1200.0,
-        1.0 + (c + 20) as f64 / 1200.0, 42.0 + (r + 20) as f64 / 1200.0).unwrap();
+    let bbox = GeoBbox::new(
+        1.0 + c as f64 / 1200.0,
+        42.0 + r as f64 / 1200.0,
+        1.0 + (c + 20) as f64 / 1200.0,
+        42.0 + (r + 20) as f64 / 1200.0,
+    )
+    .unwrap();
     let scene = Scene::ground(&m, &bbox);
 
     // The cells that hold triangles are exactly the valid ones (counted from the raw file).
     let p = 1200.0;
-    let with_triangles: HashSet<(i64, i64)> =
-        scene.mesh.triangles.iter().map(|&t| cell_of_triangle(&scene.mesh, &scene.frame, t, p)).collect();
+    let with_triangles: HashSet<(i64, i64)> = scene
+        .mesh
+        .triangles
+        .iter()
+        .map(|&t| cell_of_triangle(&scene.mesh, &scene.frame, t, p))
+        .collect();
     let mut expected = HashSet::new();
     let mut voids = 0;
-    for j in (bbox.min_lat() * p - 0.5).floor() as i64 + 1..=(bbox.max_lat() * p + 0.5).ceil() as i64 - 1 {
-        for i in (bbox.min_lon() * p - 0.5).floor() as i64 + 1..=(bbox.max_lon() * p + 0.5).ceil() as i64 - 1 {
+    for j in
+        (bbox.min_lat() * p - 0.5).floor() as i64 + 1..=(bbox.max_lat() * p + 0.5).ceil() as i64 - 1
+    {
+        for i in (bbox.min_lon() * p - 0.5).floor() as i64 + 1
+            ..=(bbox.max_lon() * p + 0.5).ceil() as i64 - 1
+        {
             match tile.raw((j - 42 * 1200) as usize, (i - 1200) as usize) {
                 Some(VOID) => voids += 1,
                 Some(_) => {
@@ -143,7 +191,13 @@ fn voids_of_n42e001_leave_holes_not_spikes() {
     assert_eq!(scene.ground.void_cells, voids);
     assert!(voids >= best_n);
     assert_eq!(with_triangles, expected);
-    let lowest_valid = tile.samples().iter().filter(|&&s| s != VOID).min().copied().unwrap();
+    let lowest_valid = tile
+        .samples()
+        .iter()
+        .filter(|&&s| s != VOID)
+        .min()
+        .copied()
+        .unwrap();
     for p in &scene.mesh.positions {
         assert!(p[2] >= f64::from(lowest_valid), "spike to {}", p[2]);
     }
@@ -164,7 +218,12 @@ fn mesh_height(mesh: &Mesh, x: f64, y: f64) -> Option<f64> {
     None
 }
 
-fn assert_equation_1_matches_mesh(m: &ElevationModel, bbox: GeoBbox, points: usize, seed: u64) -> usize {
+fn assert_equation_1_matches_mesh(
+    m: &ElevationModel,
+    bbox: GeoBbox,
+    points: usize,
+    seed: u64,
+) -> usize {
     let scene = Scene::ground(m, &bbox);
     let mut rng = Rng::new(seed);
     let mut compared = 0;
@@ -174,7 +233,10 @@ fn assert_equation_1_matches_mesh(m: &ElevationModel, bbox: GeoBbox, points: usi
         let [x, y, _] = scene.frame.to_local(lon, lat, 0.0);
         match (m.elevation(lon, lat), mesh_height(&scene.mesh, x, y)) {
             (Some(eq1), Some(mesh)) => {
-                assert!((eq1 - mesh).abs() < 1e-6, "at {lon},{lat}: Equation 1 {eq1}, mesh {mesh}");
+                assert!(
+                    (eq1 - mesh).abs() < 1e-6,
+                    "at {lon},{lat}: Equation 1 {eq1}, mesh {mesh}"
+                );
                 compared += 1;
             }
             (None, None) => {}
@@ -188,13 +250,45 @@ fn assert_equation_1_matches_mesh(m: &ElevationModel, bbox: GeoBbox, points: usi
 fn equation_1_equals_the_ground_mesh_at_random_points() {
     let m = model(&["N49E008.hgt", "N49E009.hgt"]);
     // Karlsruhe (flat), the Odenwald edge (slopes) and the 9 E seam.
-    assert_eq!(assert_equation_1_matches_mesh(&m, GeoBbox::new(8.39, 49.04, 8.41, 49.06).unwrap(), 2000, 1), 2000);
-    assert_eq!(assert_equation_1_matches_mesh(&m, GeoBbox::new(8.70, 49.38, 8.73, 49.40).unwrap(), 2000, 2), 2000);
-    assert_eq!(assert_equation_1_matches_mesh(&m, GeoBbox::new(8.99, 49.20, 9.01, 49.21).unwrap(), 2000, 3), 2000);
+    assert_eq!(
+        assert_equation_1_matches_mesh(
+            &m,
+            GeoBbox::new(8.39, 49.04, 8.41, 49.06).unwrap(),
+            2000,
+            1
+        ),
+        2000
+    );
+    assert_eq!(
+        assert_equation_1_matches_mesh(
+            &m,
+            GeoBbox::new(8.70, 49.38, 8.73, 49.40).unwrap(),
+            2000,
+            2
+        ),
+        2000
+    );
+    assert_eq!(
+        assert_equation_1_matches_mesh(
+            &m,
+            GeoBbox::new(8.99, 49.20, 9.01, 49.21).unwrap(),
+            2000,
+            3
+        ),
+        2000
+    );
     // Andorra, with voids: points over voids must be outside the mesh too.
     let andorra = model(&["N42E001.hgt"]);
-    let compared = assert_equation_1_matches_mesh(&andorra, GeoBbox::new(1.50, 42.50, 1.53, 42.53).unwrap(), 2000, 4);
-    assert!(compared > 1000, "only {compared} points fell on valid ground");
+    let compared = assert_equation_1_matches_mesh(
+        &andorra,
+        GeoBbox::new(1.50, 42.50, 1.53, 42.53).unwrap(),
+        2000,
+        4,
+    );
+    assert!(
+        compared > 1000,
+        "only {compared} points fell on valid ground"
+    );
 }
 
 #[test]
@@ -212,7 +306,11 @@ fn a_3601_grid_works_like_the_1201_grid_it_was_made_from() {
             let south = get(r0, c0) + (get(r0, c0 + 1) - get(r0, c0)) * fc;
             let north = get(r0 + 1, c0) + (get(r0 + 1, c0 + 1) - get(r0 + 1, c0)) * fc;
             let v = (south + (north - south) * fr).round() as i16;
-            let v = if coarse.raw(r0, c0) == Some(VOID) { VOID } else { v };
+            let v = if coarse.raw(r0, c0) == Some(VOID) {
+                VOID
+            } else {
+                v
+            };
             bytes.extend_from_slice(&v.to_be_bytes());
         }
     }
@@ -248,7 +346,8 @@ fn tile_vertices_map_back_to_their_lon_lat() {
 
     let gltf = gltf::Gltf::from_slice(&glb).expect("a GLB the gltf crate reads");
     let scene = gltf.default_scene().unwrap();
-    let extras: serde_json::Value = serde_json::from_str(scene.extras().as_ref().unwrap().get()).unwrap();
+    let extras: serde_json::Value =
+        serde_json::from_str(scene.extras().as_ref().unwrap().get()).unwrap();
     let origin = &extras["origin"];
     let frame = LocalFrame::new(
         origin["lon"].as_f64().unwrap(),
@@ -276,7 +375,10 @@ fn tile_vertices_map_back_to_their_lon_lat() {
             let on_grid_y = dy(lat, (lat * p * 2.0).round() / (p * 2.0)) < 0.01;
             let on_border_x = dx(lon, bounds.min_lon()) < 0.01 || dx(lon, bounds.max_lon()) < 0.01;
             let on_border_y = dy(lat, bounds.min_lat()) < 0.01 || dy(lat, bounds.max_lat()) < 0.01;
-            assert!((on_grid_x && on_grid_y) || on_border_x || on_border_y, "vertex at {lon},{lat}");
+            assert!(
+                (on_grid_x && on_grid_y) || on_border_x || on_border_y,
+                "vertex at {lon},{lat}"
+            );
             // And its height is the ground there (f32 keeps millimetres at this size).
             let ground = m.elevation(lon, lat).unwrap();
             assert!((h - ground).abs() < 0.01, "at {lon},{lat}: {h} vs {ground}");

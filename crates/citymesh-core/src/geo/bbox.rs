@@ -19,9 +19,13 @@ pub enum BboxError {
     LongitudeOutOfRange(f64),
     #[error("latitude {0} is outside -85.0511..85.0511 (the Web Mercator limit)")]
     LatitudeOutOfRange(f64),
-    #[error("minLon {min} must be smaller than maxLon {max} (the order is minLon,minLat,maxLon,maxLat)")]
+    #[error(
+        "minLon {min} must be smaller than maxLon {max} (the order is minLon,minLat,maxLon,maxLat)"
+    )]
     InvertedLongitude { min: f64, max: f64 },
-    #[error("minLat {min} must be smaller than maxLat {max} (the order is minLon,minLat,maxLon,maxLat)")]
+    #[error(
+        "minLat {min} must be smaller than maxLat {max} (the order is minLon,minLat,maxLon,maxLat)"
+    )]
     InvertedLatitude { min: f64, max: f64 },
 }
 
@@ -61,12 +65,23 @@ impl GeoBbox {
             }
         }
         if min_lon >= max_lon {
-            return Err(BboxError::InvertedLongitude { min: min_lon, max: max_lon });
+            return Err(BboxError::InvertedLongitude {
+                min: min_lon,
+                max: max_lon,
+            });
         }
         if min_lat >= max_lat {
-            return Err(BboxError::InvertedLatitude { min: min_lat, max: max_lat });
+            return Err(BboxError::InvertedLatitude {
+                min: min_lat,
+                max: max_lat,
+            });
         }
-        Ok(Self { min_lon, min_lat, max_lon, max_lat })
+        Ok(Self {
+            min_lon,
+            min_lat,
+            max_lon,
+            max_lat,
+        })
     }
 
     pub fn min_lon(&self) -> f64 {
@@ -84,7 +99,10 @@ impl GeoBbox {
 
     /// The centre `(lon, lat)`.
     pub fn center(&self) -> (f64, f64) {
-        ((self.min_lon + self.max_lon) / 2.0, (self.min_lat + self.max_lat) / 2.0)
+        (
+            (self.min_lon + self.max_lon) / 2.0,
+            (self.min_lat + self.max_lat) / 2.0,
+        )
     }
 
     /// The area in square kilometres on the WGS84 ellipsoid, from the local frame at the centre.
@@ -125,7 +143,11 @@ impl FromStr for GeoBbox {
 
 impl fmt::Display for GeoBbox {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{},{},{},{}", self.min_lon, self.min_lat, self.max_lon, self.max_lat)
+        write!(
+            f,
+            "{},{},{},{}",
+            self.min_lon, self.min_lat, self.max_lon, self.max_lat
+        )
     }
 }
 
@@ -151,7 +173,10 @@ mod tests {
     #[test]
     fn parses_and_measures() {
         let b: GeoBbox = " 8.39, 49.04 ,8.41,49.06".parse().unwrap();
-        assert_eq!((b.min_lon(), b.min_lat(), b.max_lon(), b.max_lat()), (8.39, 49.04, 8.41, 49.06));
+        assert_eq!(
+            (b.min_lon(), b.min_lat(), b.max_lon(), b.max_lat()),
+            (8.39, 49.04, 8.41, 49.06)
+        );
         // 0.02 deg of longitude at 49.05 N is 1.46197 km and 0.02 deg of latitude 2.22421 km
         // (WGS84 radii of curvature at the centre).
         assert!((b.area_km2() - 3.25174).abs() < 1e-5, "{}", b.area_km2());

@@ -94,7 +94,10 @@ mod tests {
             let b = f.to_local(8.4 + dlon, 49.0 + dlat, 0.0);
             let frame = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
             let s12: f64 = geod.inverse(49.0, 8.4, 49.0 + dlat, 8.4 + dlon);
-            assert!((frame / s12 - 1.0).abs() < 2e-4, "{dlon},{dlat}: {frame} vs {s12}");
+            assert!(
+                (frame / s12 - 1.0).abs() < 2e-4,
+                "{dlon},{dlat}: {frame} vs {s12}"
+            );
         }
     }
 

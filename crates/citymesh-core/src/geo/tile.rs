@@ -54,7 +54,11 @@ impl TileCoord {
         let lat = lat.clamp(-MAX_MERCATOR_LAT, MAX_MERCATOR_LAT);
         let x = ((lon + 180.0) / 360.0 * n).floor().clamp(0.0, n - 1.0);
         let y = (mercator_y(lat) * n).floor().clamp(0.0, n - 1.0);
-        Self { z, x: x as u32, y: y as u32 }
+        Self {
+            z,
+            x: x as u32,
+            y: y as u32,
+        }
     }
 
     /// The tile's extent in degrees.
@@ -93,8 +97,22 @@ mod tests {
     #[test]
     fn rejects_out_of_range() {
         assert_eq!(TileCoord::new(31, 0, 0), Err(TileError::ZoomOutOfRange(31)));
-        assert_eq!(TileCoord::new(1, 2, 0), Err(TileError::XOutOfRange { z: 1, x: 2, limit: 2 }));
-        assert_eq!(TileCoord::new(1, 0, 2), Err(TileError::YOutOfRange { z: 1, y: 2, limit: 2 }));
+        assert_eq!(
+            TileCoord::new(1, 2, 0),
+            Err(TileError::XOutOfRange {
+                z: 1,
+                x: 2,
+                limit: 2
+            })
+        );
+        assert_eq!(
+            TileCoord::new(1, 0, 2),
+            Err(TileError::YOutOfRange {
+                z: 1,
+                y: 2,
+                limit: 2
+            })
+        );
         let world = TileCoord::new(0, 0, 0).unwrap().bounds();
         assert_eq!(world.min_lon(), -180.0);
         assert!((world.max_lat() - MAX_MERCATOR_LAT).abs() < 1e-9);

@@ -59,8 +59,10 @@ pub fn write_glb(mesh: &Mesh, origin: GlbOrigin) -> Vec<u8> {
                 for k in 0..3 {
                     min[k] = min[k].min(p[k]);
                     max[k] = max[k].max(p[k]);
-                    pos_bytes[v * 12 + k * 4..v * 12 + k * 4 + 4].copy_from_slice(&p[k].to_le_bytes());
-                    nor_bytes[v * 12 + k * 4..v * 12 + k * 4 + 4].copy_from_slice(&n[k].to_le_bytes());
+                    pos_bytes[v * 12 + k * 4..v * 12 + k * 4 + 4]
+                        .copy_from_slice(&p[k].to_le_bytes());
+                    nor_bytes[v * 12 + k * 4..v * 12 + k * 4 + 4]
+                        .copy_from_slice(&n[k].to_le_bytes());
                 }
                 col_bytes[v * 4..v * 4 + 4].copy_from_slice(&[r, g, b, 255]);
                 v += 1;
@@ -68,14 +70,22 @@ pub fn write_glb(mesh: &Mesh, origin: GlbOrigin) -> Vec<u8> {
         }
         let count = v - first;
         let a = accessors.len();
-        accessors.push(json!({"bufferView": 0, "byteOffset": first * 12, "componentType": FLOAT,
-            "count": count, "type": "VEC3", "min": min, "max": max}));
-        accessors.push(json!({"bufferView": 1, "byteOffset": first * 12, "componentType": FLOAT,
-            "count": count, "type": "VEC3"}));
-        accessors.push(json!({"bufferView": 2, "byteOffset": first * 4, "componentType": UNSIGNED_BYTE,
-            "normalized": true, "count": count, "type": "VEC4"}));
-        primitives.push(json!({"attributes": {"POSITION": a, "NORMAL": a + 1, "COLOR_0": a + 2},
-            "material": materials.len(), "mode": 4}));
+        accessors.push(
+            json!({"bufferView": 0, "byteOffset": first * 12, "componentType": FLOAT,
+            "count": count, "type": "VEC3", "min": min, "max": max}),
+        );
+        accessors.push(
+            json!({"bufferView": 1, "byteOffset": first * 12, "componentType": FLOAT,
+            "count": count, "type": "VEC3"}),
+        );
+        accessors.push(
+            json!({"bufferView": 2, "byteOffset": first * 4, "componentType": UNSIGNED_BYTE,
+            "normalized": true, "count": count, "type": "VEC4"}),
+        );
+        primitives.push(
+            json!({"attributes": {"POSITION": a, "NORMAL": a + 1, "COLOR_0": a + 2},
+            "material": materials.len(), "mode": 4}),
+        );
         materials.push(json!({"name": material.name(), "pbrMetallicRoughness": {
             "baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.9}}));
     }
@@ -112,9 +122,13 @@ pub fn write_glb(mesh: &Mesh, origin: GlbOrigin) -> Vec<u8> {
 fn face_normal([a, b, c]: [[f64; 3]; 3]) -> Option<[f32; 3]> {
     let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
     let w = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-    let n = [u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]];
+    let n = [
+        u[1] * w[2] - u[2] * w[1],
+        u[2] * w[0] - u[0] * w[2],
+        u[0] * w[1] - u[1] * w[0],
+    ];
     let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-    if !(len > 1e-12) || !len.is_finite() {
+    if !len.is_finite() || len <= 1e-12 {
         return None;
     }
     // Also require the f32 positions to keep an area, so clients do not see a degenerate triangle.
@@ -130,10 +144,10 @@ fn face_normal([a, b, c]: [[f64; 3]; 3]) -> Option<[f32; 3]> {
 /// Wraps a JSON document and a binary buffer into the GLB container.
 fn encode_glb(document: &Value, mut bin: Vec<u8>) -> Vec<u8> {
     let mut json = serde_json::to_vec(document).expect("a serde_json Value always serialises");
-    while json.len() % 4 != 0 {
+    while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let has_bin = !bin.is_empty();

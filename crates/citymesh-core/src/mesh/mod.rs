@@ -20,7 +20,12 @@ pub enum Material {
 
 impl Material {
     /// All materials, in the order the GLB lists them.
-    pub const ALL: [Material; 4] = [Material::Ground, Material::Wall, Material::Roof, Material::Floor];
+    pub const ALL: [Material; 4] = [
+        Material::Ground,
+        Material::Wall,
+        Material::Roof,
+        Material::Floor,
+    ];
 
     /// The glTF material name.
     pub fn name(self) -> &'static str {

@@ -28,7 +28,11 @@ pub fn corner_height(cells: [Option<f64>; 4]) -> Option<f64> {
 #[inline]
 pub(crate) fn equation_1(c: f64, [sw, se, ne, nw]: [f64; 4], du: f64, dv: f64) -> f64 {
     let (a, b_corner, b, h) = if du.abs() >= dv.abs() {
-        if du >= 0.0 { (se, ne, dv + 0.5, 0.5 - du) } else { (nw, sw, 0.5 - dv, du + 0.5) }
+        if du >= 0.0 {
+            (se, ne, dv + 0.5, 0.5 - du)
+        } else {
+            (nw, sw, 0.5 - dv, du + 0.5)
+        }
     } else if dv >= 0.0 {
         (ne, nw, 0.5 - du, 0.5 - dv)
     } else {
@@ -107,10 +111,20 @@ impl ElevationModel {
         let (j, dv) = cell_of(v);
         let c = sample(i, j)?;
         let corner = |ci: i64, cj: i64| {
-            corner_height([sample(ci, cj), sample(ci + 1, cj), sample(ci, cj + 1), sample(ci + 1, cj + 1)])
+            corner_height([
+                sample(ci, cj),
+                sample(ci + 1, cj),
+                sample(ci, cj + 1),
+                sample(ci + 1, cj + 1),
+            ])
         };
         // The centre is valid, so each corner has at least one valid cell.
-        let corners = [corner(i - 1, j - 1)?, corner(i, j - 1)?, corner(i, j)?, corner(i - 1, j)?];
+        let corners = [
+            corner(i - 1, j - 1)?,
+            corner(i, j - 1)?,
+            corner(i, j)?,
+            corner(i - 1, j)?,
+        ];
         Some(equation_1(c, corners, du, dv))
     }
 }

@@ -62,8 +62,14 @@ pub fn build_ground(
     let (umin, umax) = (bbox.min_lon() * p, bbox.max_lon() * p);
     let (vmin, vmax) = (bbox.min_lat() * p, bbox.max_lat() * p);
     // Cells [i - 0.5, i + 0.5] that overlap the box with some area.
-    let (ci0, ci1) = ((umin - 0.5).floor() as i64 + 1, (umax + 0.5).ceil() as i64 - 1);
-    let (cj0, cj1) = ((vmin - 0.5).floor() as i64 + 1, (vmax + 0.5).ceil() as i64 - 1);
+    let (ci0, ci1) = (
+        (umin - 0.5).floor() as i64 + 1,
+        (umax + 0.5).ceil() as i64 - 1,
+    );
+    let (cj0, cj1) = (
+        (vmin - 0.5).floor() as i64 + 1,
+        (vmax + 0.5).ceil() as i64 - 1,
+    );
 
     let mut report = GroundReport::default();
     let width = (ci1 - ci0 + 3) as usize;
@@ -81,13 +87,21 @@ pub fn build_ground(
             });
         }
     }
-    let window = Window { i0: ci0 - 1, j0: cj0 - 1, width, samples };
+    let window = Window {
+        i0: ci0 - 1,
+        j0: cj0 - 1,
+        width,
+        samples,
+    };
 
     // Corner (ci, cj) sits at (ci + 0.5, cj + 0.5); it is created on first use.
     let corner_w = (ci1 - ci0 + 2) as usize;
     let mut corner_ids = vec![u32::MAX; corner_w * (cj1 - cj0 + 2) as usize];
     let mut border_ids: HashMap<(u64, u64), u32> = HashMap::new();
-    let style = FaceStyle { material: Material::Ground, colour: Rgb::GROUND };
+    let style = FaceStyle {
+        material: Material::Ground,
+        colour: Rgb::GROUND,
+    };
     let first_triangle = mesh.triangles.len();
     let to_local = |u: f64, v: f64, h: f64| frame.to_local(u / p, v / p, h);
 
@@ -101,9 +115,15 @@ pub fn build_ground(
             let (fu, fv) = (i as f64, j as f64);
             // Corners in order SW, SE, NE, NW: grid index and position.
             let corner_at = [(i - 1, j - 1), (i, j - 1), (i, j), (i - 1, j)];
-            let corner_pos = [(fu - 0.5, fv - 0.5), (fu + 0.5, fv - 0.5), (fu + 0.5, fv + 0.5), (fu - 0.5, fv + 0.5)];
+            let corner_pos = [
+                (fu - 0.5, fv - 0.5),
+                (fu + 0.5, fv - 0.5),
+                (fu + 0.5, fv + 0.5),
+                (fu - 0.5, fv + 0.5),
+            ];
             let mut ids = [0u32; 4];
-            let inside = fu - 0.5 >= umin && fu + 0.5 <= umax && fv - 0.5 >= vmin && fv + 0.5 <= vmax;
+            let inside =
+                fu - 0.5 >= umin && fu + 0.5 <= umax && fv - 0.5 >= vmin && fv + 0.5 <= vmax;
             for k in 0..4 {
                 let (ci, cj) = corner_at[k];
                 let h = corner_height([
@@ -119,14 +139,19 @@ pub fn build_ground(
                     ids[k] = u32::MAX;
                     continue;
                 }
-                let slot = &mut corner_ids[(cj - (cj0 - 1)) as usize * corner_w + (ci - (ci0 - 1)) as usize];
+                let slot = &mut corner_ids
+                    [(cj - (cj0 - 1)) as usize * corner_w + (ci - (ci0 - 1)) as usize];
                 if *slot == u32::MAX {
                     *slot = mesh.push_vertex(to_local(u, v, h));
                 }
                 ids[k] = *slot;
             }
             let centre_inside = (umin..=umax).contains(&fu) && (vmin..=vmax).contains(&fv);
-            let centre = if centre_inside { mesh.push_vertex(to_local(fu, fv, c)) } else { u32::MAX };
+            let centre = if centre_inside {
+                mesh.push_vertex(to_local(fu, fv, c))
+            } else {
+                u32::MAX
+            };
 
             for k in 0..4 {
                 let (a, b) = (k, (k + 1) % 4);
@@ -135,9 +160,24 @@ pub fn build_ground(
                     continue;
                 }
                 let tri = [
-                    ClipVertex { u: corner_pos[a].0, v: corner_pos[a].1, id: Some(ids[a]), on: 0 },
-                    ClipVertex { u: corner_pos[b].0, v: corner_pos[b].1, id: Some(ids[b]), on: 0 },
-                    ClipVertex { u: fu, v: fv, id: Some(centre), on: 0 },
+                    ClipVertex {
+                        u: corner_pos[a].0,
+                        v: corner_pos[a].1,
+                        id: Some(ids[a]),
+                        on: 0,
+                    },
+                    ClipVertex {
+                        u: corner_pos[b].0,
+                        v: corner_pos[b].1,
+                        id: Some(ids[b]),
+                        on: 0,
+                    },
+                    ClipVertex {
+                        u: fu,
+                        v: fv,
+                        id: Some(centre),
+                        on: 0,
+                    },
                 ];
                 let polygon = clip_to_box(&tri, [umin, umax, vmin, vmax]);
                 if polygon.len() < 3 {
@@ -149,10 +189,12 @@ pub fn build_ground(
                         Some(id) => id,
                         None => {
                             let (u, v) = canonical_border_point(cv, &tri, [umin, umax, vmin, vmax]);
-                            *border_ids.entry((u.to_bits(), v.to_bits())).or_insert_with(|| {
-                                let h = model_height(&window, u, v);
-                                mesh.push_vertex(to_local(u, v, h))
-                            })
+                            *border_ids
+                                .entry((u.to_bits(), v.to_bits()))
+                                .or_insert_with(|| {
+                                    let h = model_height(&window, u, v);
+                                    mesh.push_vertex(to_local(u, v, h))
+                                })
                         }
                     };
                     if poly_ids.last() != Some(&id) && poly_ids.first() != Some(&id) {
@@ -177,11 +219,26 @@ fn model_height(window: &Window, u: f64, v: f64) -> f64 {
     let (i, du) = super::elevation::cell_of(u);
     let (j, dv) = super::elevation::cell_of(v);
     let corner = |ci: i64, cj: i64| {
-        corner_height([window.get(ci, cj), window.get(ci + 1, cj), window.get(ci, cj + 1), window.get(ci + 1, cj + 1)])
-            .unwrap_or(0.0)
+        corner_height([
+            window.get(ci, cj),
+            window.get(ci + 1, cj),
+            window.get(ci, cj + 1),
+            window.get(ci + 1, cj + 1),
+        ])
+        .unwrap_or(0.0)
     };
     let c = window.get(i, j).unwrap_or(0.0);
-    equation_1(c, [corner(i - 1, j - 1), corner(i, j - 1), corner(i, j), corner(i - 1, j)], du, dv)
+    equation_1(
+        c,
+        [
+            corner(i - 1, j - 1),
+            corner(i, j - 1),
+            corner(i, j),
+            corner(i - 1, j),
+        ],
+        du,
+        dv,
+    )
 }
 
 fn has_area(mesh: &Mesh, t: [u32; 3]) -> bool {
@@ -195,13 +252,24 @@ fn has_area(mesh: &Mesh, t: [u32; 3]) -> bool {
 fn clip_to_box(polygon: &[ClipVertex], [umin, umax, vmin, vmax]: [f64; 4]) -> Vec<ClipVertex> {
     let mut current: Vec<ClipVertex> = polygon.to_vec();
     // (is the line vertical, its value, keep the side >= value, bit)
-    let lines = [(true, umin, true, 1u8), (true, umax, false, 2), (false, vmin, true, 4), (false, vmax, false, 8)];
+    let lines = [
+        (true, umin, true, 1u8),
+        (true, umax, false, 2),
+        (false, vmin, true, 4),
+        (false, vmax, false, 8),
+    ];
     for (vertical, value, keep_above, bit) in lines {
         if current.is_empty() {
             break;
         }
         let coord = |c: &ClipVertex| if vertical { c.u } else { c.v };
-        let inside = |c: &ClipVertex| if keep_above { coord(c) >= value } else { coord(c) <= value };
+        let inside = |c: &ClipVertex| {
+            if keep_above {
+                coord(c) >= value
+            } else {
+                coord(c) <= value
+            }
+        };
         let mut next = Vec::with_capacity(current.len() + 2);
         for k in 0..current.len() {
             let a = current[k];
@@ -227,20 +295,45 @@ fn clip_to_box(polygon: &[ClipVertex], [umin, umax, vmin, vmax]: [f64; 4]) -> Ve
 /// Where segment a-b crosses a box line, computed from the endpoints in a fixed order so the same
 /// segment gives the same bits whichever way it is walked.
 fn cross_line(a: ClipVertex, b: ClipVertex, vertical: bool, value: f64, bit: u8) -> ClipVertex {
-    let (p, q) = if (a.u, a.v) <= (b.u, b.v) { (a, b) } else { (b, a) };
+    let (p, q) = if (a.u, a.v) <= (b.u, b.v) {
+        (a, b)
+    } else {
+        (b, a)
+    };
     let (u, v) = if vertical {
         (value, p.v + (value - p.u) * (q.v - p.v) / (q.u - p.u))
     } else {
         (p.u + (value - p.v) * (q.u - p.u) / (q.v - p.v), value)
     };
-    ClipVertex { u, v, id: None, on: (a.on & b.on) | bit }
+    ClipVertex {
+        u,
+        v,
+        id: None,
+        on: (a.on & b.on) | bit,
+    }
 }
 
 /// A clipped vertex recomputed from the original triangle edge it lies on (or as the box corner),
 /// so neighbouring cells and neighbouring boxes get identical coordinates.
-fn canonical_border_point(cv: &ClipVertex, tri: &[ClipVertex; 3], [umin, umax, vmin, vmax]: [f64; 4]) -> (f64, f64) {
-    let u_line = if cv.on & 1 != 0 { Some(umin) } else if cv.on & 2 != 0 { Some(umax) } else { None };
-    let v_line = if cv.on & 4 != 0 { Some(vmin) } else if cv.on & 8 != 0 { Some(vmax) } else { None };
+fn canonical_border_point(
+    cv: &ClipVertex,
+    tri: &[ClipVertex; 3],
+    [umin, umax, vmin, vmax]: [f64; 4],
+) -> (f64, f64) {
+    let u_line = if cv.on & 1 != 0 {
+        Some(umin)
+    } else if cv.on & 2 != 0 {
+        Some(umax)
+    } else {
+        None
+    };
+    let v_line = if cv.on & 4 != 0 {
+        Some(vmin)
+    } else if cv.on & 8 != 0 {
+        Some(vmax)
+    } else {
+        None
+    };
     match (u_line, v_line) {
         (Some(u), Some(v)) => (u, v),
         (Some(u), None) => {

@@ -28,7 +28,13 @@ pub struct HgtTile {
 
 impl std::fmt::Debug for HgtTile {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "HgtTile({}, {}x{})", hgt_name(self.south, self.west), self.size, self.size)
+        write!(
+            f,
+            "HgtTile({}, {}x{})",
+            hgt_name(self.south, self.west),
+            self.size,
+            self.size
+        )
     }
 }
 
@@ -40,16 +46,34 @@ impl HgtTile {
             25_934_402 => 3601,
             n => return Err(HgtError::WrongSize(n)),
         };
-        let samples = bytes.chunks_exact(2).map(|b| i16::from_be_bytes([b[0], b[1]])).collect();
-        Ok(Self { south, west, size, samples })
+        let samples = bytes
+            .chunks_exact(2)
+            .map(|b| i16::from_be_bytes([b[0], b[1]]))
+            .collect();
+        Ok(Self {
+            south,
+            west,
+            size,
+            samples,
+        })
     }
 
     /// Builds a tile from samples (rows north to south); `samples.len()` must be `size * size`
     /// with `size` 1201 or 3601.
     pub fn from_samples(south: i32, west: i32, samples: Vec<i16>) -> Result<Self, HgtError> {
         match samples.len() {
-            1_442_401 => Ok(Self { south, west, size: 1201, samples }),
-            12_967_201 => Ok(Self { south, west, size: 3601, samples }),
+            1_442_401 => Ok(Self {
+                south,
+                west,
+                size: 1201,
+                samples,
+            }),
+            12_967_201 => Ok(Self {
+                south,
+                west,
+                size: 3601,
+                samples,
+            }),
             n => Err(HgtError::WrongSize(n * 2)),
         }
     }
@@ -127,8 +151,9 @@ pub fn parse_hgt_name(name: &str) -> Result<(i32, i32), HgtError> {
         return Err(bad());
     }
     let digits = |s: &[u8]| -> Option<i32> {
-        s.iter()
-            .try_fold(0i32, |acc, &c| c.is_ascii_digit().then(|| acc * 10 + i32::from(c - b'0')))
+        s.iter().try_fold(0i32, |acc, &c| {
+            c.is_ascii_digit().then(|| acc * 10 + i32::from(c - b'0'))
+        })
     };
     let lat_sign = match b[0].to_ascii_uppercase() {
         b'N' => 1,
@@ -155,7 +180,10 @@ mod tests {
     #[test]
     fn refuses_truncated_bytes() {
         let bytes = vec![0u8; 2_884_800];
-        assert_eq!(HgtTile::from_bytes(49, 8, &bytes), Err(HgtError::WrongSize(2_884_800)));
+        assert_eq!(
+            HgtTile::from_bytes(49, 8, &bytes),
+            Err(HgtError::WrongSize(2_884_800))
+        );
     }
 
     #[test]

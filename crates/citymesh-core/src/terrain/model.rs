@@ -39,7 +39,10 @@ impl ElevationModel {
     /// degree when there are none); coarser tiles are interpolated bilinearly onto it.
     pub fn new(tiles: Vec<Arc<HgtTile>>) -> Self {
         let per_degree = tiles.iter().map(|t| t.per_degree()).max().unwrap_or(1200);
-        let tiles = tiles.into_iter().map(|t| ((t.south(), t.west()), t)).collect();
+        let tiles = tiles
+            .into_iter()
+            .map(|t| ((t.south(), t.west()), t))
+            .collect();
         Self { per_degree, tiles }
     }
 
@@ -96,7 +99,10 @@ impl ElevationModel {
         }
         // A coarser tile: bilinear between its four surrounding samples.
         let (r0, c0) = (row * q / p, col * q / p);
-        let (fr, fc) = ((row * q % p) as f64 / p as f64, (col * q % p) as f64 / p as f64);
+        let (fr, fc) = (
+            (row * q % p) as f64 / p as f64,
+            (col * q % p) as f64 / p as f64,
+        );
         let r1 = (r0 + 1).min(q);
         let c1 = (c0 + 1).min(q);
         match (value(r0, c0), value(r0, c1), value(r1, c0), value(r1, c1)) {
@@ -172,7 +178,10 @@ mod tests {
         assert_eq!(m.per_degree(), 3600);
         // Every third fine step is a coarse sample; between them, a bilinear blend.
         assert_eq!(m.sample(8 * 3600 + 3, 49 * 3600 + 6), Sample::Valid(21.0));
-        assert_eq!(m.sample(8 * 3600 + 4, 49 * 3600 + 6), Sample::Valid(21.0 + 1.0 / 3.0));
+        assert_eq!(
+            m.sample(8 * 3600 + 4, 49 * 3600 + 6),
+            Sample::Valid(21.0 + 1.0 / 3.0)
+        );
         assert_eq!(m.sample(9 * 3600 + 4, 49 * 3600 + 6), Sample::Valid(7.0));
     }
 }
