@@ -6,5 +6,6 @@
 
 pub mod geo;
 pub mod mesh;
+pub mod osm;
 pub mod scene;
 pub mod terrain;

@@ -1,0 +1,273 @@
+//! From raw OSM elements to building records: closed ways and multipolygon relations tagged
+//! `building=*` or `building:part=*`, with multipolygon rings joined from their member ways.
+//! Whatever real data gets wrong is skipped with a reason and counted; the rest still renders.
+
+use super::raw::{MemberKind, RawOsm, RawWay, Tags};
+use std::collections::{HashMap, HashSet};
+use std::fmt;
+
+/// The OSM element a building comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum OsmId {
+    Way(i64),
+    Relation(i64),
+}
+
+impl fmt::Display for OsmId {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            OsmId::Way(id) => write!(f, "way/{id}"),
+            OsmId::Relation(id) => write!(f, "relation/{id}"),
+        }
+    }
+}
+
+/// A point of a ring, with its node id when the source has one (used to find neighbours).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RingNode {
+    pub id: Option<i64>,
+    pub lon: f64,
+    pub lat: f64,
+}
+
+/// A closed ring, stored open: the last node is not a repeat of the first.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Ring {
+    pub nodes: Vec<RingNode>,
+}
+
+/// One building or building part as OSM describes it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BuildingRecord {
+    pub id: OsmId,
+    /// `building:part=*` rather than `building=*`.
+    pub is_part: bool,
+    pub outers: Vec<Ring>,
+    pub inners: Vec<Ring>,
+    pub tags: Tags,
+}
+
+/// Why a building could not be built from the data.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum SkipReason {
+    /// A node the way refers to is not in the data.
+    MissingNodes,
+    /// A member way of the relation is not in the data.
+    MissingMembers,
+    /// A building way whose first and last node differ.
+    UnclosedWay,
+    /// Member ways that do not join into closed rings.
+    UnclosedRing,
+    /// A ring with fewer than three distinct points.
+    TooFewNodes,
+    /// A multipolygon without an outer ring.
+    NoOuterRing,
+    /// The footprint has no area, or crosses itself beyond repair.
+    DegenerateFootprint,
+}
+
+impl SkipReason {
+    /// A stable snake_case name, as used in statistics.
+    pub fn name(self) -> &'static str {
+        match self {
+            SkipReason::MissingNodes => "missing_nodes",
+            SkipReason::MissingMembers => "missing_members",
+            SkipReason::UnclosedWay => "unclosed_way",
+            SkipReason::UnclosedRing => "unclosed_ring",
+            SkipReason::TooFewNodes => "too_few_nodes",
+            SkipReason::NoOuterRing => "no_outer_ring",
+            SkipReason::DegenerateFootprint => "degenerate_footprint",
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Skipped {
+    pub id: OsmId,
+    pub reason: SkipReason,
+}
+
+/// The buildings of one OSM document.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct OsmBuildings {
+    pub buildings: Vec<BuildingRecord>,
+    pub skipped: Vec<Skipped>,
+}
+
+fn is_yes(tags: &Tags, key: &str) -> bool {
+    tags.get(key).is_some_and(|v| v != "no")
+}
+
+/// Whether the tags make a building (`Some(false)`) or a building part (`Some(true)`).
+fn building_kind(tags: &Tags) -> Option<bool> {
+    if is_yes(tags, "building") {
+        Some(false)
+    } else if is_yes(tags, "building:part") {
+        Some(true)
+    } else {
+        None
+    }
+}
+
+/// The points of a way, from inline geometry or by resolving node ids.
+fn way_points(way: &RawWay, nodes: &HashMap<i64, (f64, f64)>) -> Result<Vec<RingNode>, SkipReason> {
+    if let Some(geometry) = &way.geometry {
+        if geometry.is_empty() {
+            return Err(SkipReason::MissingNodes);
+        }
+        let ids = (way.refs.len() == geometry.len()).then_some(&way.refs);
+        return Ok(geometry
+            .iter()
+            .enumerate()
+            .map(|(i, &(lon, lat))| RingNode {
+                id: ids.map(|r| r[i]),
+                lon,
+                lat,
+            })
+            .collect());
+    }
+    way.refs
+        .iter()
+        .map(|&id| {
+            nodes.get(&id).map(|&(lon, lat)| RingNode {
+                id: Some(id),
+                lon,
+                lat,
+            })
+        })
+        .collect::<Option<Vec<_>>>()
+        .ok_or(SkipReason::MissingNodes)
+}
+
+/// Two ring points are the same node: same id, or the same coordinates when ids are unknown.
+fn same(a: &RingNode, b: &RingNode) -> bool {
+    match (a.id, b.id) {
+        (Some(x), Some(y)) => x == y,
+        _ => a.lon == b.lon && a.lat == b.lat,
+    }
+}
+
+/// A closed sequence of points (first == last) into a ring, or why not.
+fn close_ring(mut points: Vec<RingNode>) -> Result<Ring, SkipReason> {
+    if points.len() < 2 || !same(&points[0], &points[points.len() - 1]) {
+        return Err(SkipReason::UnclosedWay);
+    }
+    points.pop();
+    let distinct: HashSet<(u64, u64)> = points
+        .iter()
+        .map(|p| (p.lon.to_bits(), p.lat.to_bits()))
+        .collect();
+    if distinct.len() < 3 {
+        return Err(SkipReason::TooFewNodes);
+    }
+    Ok(Ring { nodes: points })
+}
+
+/// Joins member ways end to end into closed rings.
+fn join_rings(mut segments: Vec<Vec<RingNode>>) -> Result<Vec<Ring>, SkipReason> {
+    let mut rings = Vec::new();
+    while let Some(mut current) = segments.pop() {
+        loop {
+            if current.len() >= 4 && same(&current[0], &current[current.len() - 1]) {
+                rings.push(close_ring(current).map_err(|e| match e {
+                    SkipReason::UnclosedWay => SkipReason::UnclosedRing,
+                    other => other,
+                })?);
+                break;
+            }
+            let end = current[current.len() - 1];
+            let next = segments
+                .iter()
+                .position(|s| same(&s[0], &end) || same(&s[s.len() - 1], &end));
+            let Some(j) = next else {
+                return Err(SkipReason::UnclosedRing);
+            };
+            let mut seg = segments.swap_remove(j);
+            if !same(&seg[0], &end) {
+                seg.reverse();
+            }
+            current.extend_from_slice(&seg[1..]);
+        }
+    }
+    Ok(rings)
+}
+
+/// Finds the buildings and building parts in a document.
+pub fn assemble(raw: RawOsm) -> OsmBuildings {
+    let ways: HashMap<i64, &RawWay> = raw.ways.iter().map(|w| (w.id, w)).collect();
+    let mut out = OsmBuildings::default();
+    // Ways that are outer members of a building multipolygon are drawn by the relation.
+    let mut drawn_by_relation = HashSet::new();
+
+    for rel in &raw.relations {
+        if rel.tags.get("type").map(String::as_str) != Some("multipolygon") {
+            continue;
+        }
+        let Some(is_part) = building_kind(&rel.tags) else {
+            continue;
+        };
+        let id = OsmId::Relation(rel.id);
+        let result = (|| {
+            let mut outer = Vec::new();
+            let mut inner = Vec::new();
+            for m in rel.members.iter().filter(|m| m.kind == MemberKind::Way) {
+                let points = match (&m.geometry, ways.get(&m.id)) {
+                    (Some(g), _) if !g.is_empty() => g
+                        .iter()
+                        .map(|&(lon, lat)| RingNode { id: None, lon, lat })
+                        .collect(),
+                    (_, Some(way)) => way_points(way, &raw.nodes)?,
+                    (Some(_), None) => return Err(SkipReason::MissingNodes),
+                    (None, None) => return Err(SkipReason::MissingMembers),
+                };
+                if points.len() < 2 {
+                    return Err(SkipReason::TooFewNodes);
+                }
+                if m.role == "inner" {
+                    inner.push(points);
+                } else {
+                    outer.push(points);
+                    drawn_by_relation.insert(m.id);
+                }
+            }
+            let outers = join_rings(outer)?;
+            if outers.is_empty() {
+                return Err(SkipReason::NoOuterRing);
+            }
+            Ok((outers, join_rings(inner)?))
+        })();
+        match result {
+            Ok((outers, inners)) => out.buildings.push(BuildingRecord {
+                id,
+                is_part,
+                outers,
+                inners,
+                tags: rel.tags.clone(),
+            }),
+            Err(reason) => out.skipped.push(Skipped { id, reason }),
+        }
+    }
+
+    for way in &raw.ways {
+        let Some(is_part) = building_kind(&way.tags) else {
+            continue;
+        };
+        if drawn_by_relation.contains(&way.id) {
+            continue;
+        }
+        let id = OsmId::Way(way.id);
+        match way_points(way, &raw.nodes).and_then(close_ring) {
+            Ok(ring) => out.buildings.push(BuildingRecord {
+                id,
+                is_part,
+                outers: vec![ring],
+                inners: Vec::new(),
+                tags: way.tags.clone(),
+            }),
+            Err(reason) => out.skipped.push(Skipped { id, reason }),
+        }
+    }
+    out.buildings.sort_by_key(|b| b.id);
+    out.skipped.sort_by_key(|s| s.id);
+    out
+}

@@ -1,0 +1,177 @@
+//! The OSM readers on the real files of `../shared/data/osm`.
+
+mod common;
+
+use citymesh_core::osm::{BuildingRecord, OsmBuildings, read_buildings};
+use rstest::rstest;
+use serde_json::{Value, json};
+use std::collections::HashMap;
+use std::io::Read;
+
+fn bytes(name: &str) -> Vec<u8> {
+    let path = common::data_dir().join("osm").join(name);
+    let bytes =
+        std::fs::read(&path).unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
+    if !name.ends_with(".gz") {
+        return bytes;
+    }
+    let mut out = Vec::new();
+    flate2::read::GzDecoder::new(&bytes[..])
+        .read_to_end(&mut out)
+        .unwrap();
+    out
+}
+
+fn read(name: &str) -> OsmBuildings {
+    read_buildings(&bytes(name)).unwrap()
+}
+
+/// Counts from the data README: buildings / parts per file; none of these files has a record the
+/// reader must skip.
+#[rstest]
+#[case("karlsruhe-kirchfeld.osm.pbf", 2995, 31)]
+#[case("karlsruhe-kirchfeld.overpass.json", 2995, 31)]
+#[case("karlsruhe-kit-nord.osm.pbf", 526, 76)]
+#[case("tram-junction.osm.pbf", 265, 15)]
+#[case("nuremberg-laufamholz.osm", 118, 0)]
+#[case("san-francisco.overpass.json.gz", 617, 0)]
+fn every_file_gives_its_buildings_and_parts(
+    #[case] file: &str,
+    #[case] buildings: usize,
+    #[case] parts: usize,
+) {
+    let b = read(file);
+    assert_eq!(b.buildings.iter().filter(|b| !b.is_part).count(), buildings);
+    assert_eq!(b.buildings.iter().filter(|b| b.is_part).count(), parts);
+    assert_eq!(b.skipped, vec![]);
+}
+
+/// Asserts two readings hold the same buildings: ids, tags, node ids, and coordinates to 1e-9 deg
+/// (PBF stores 100-nanodegree integers, JSON decimals).
+fn assert_same_buildings(a: &[BuildingRecord], b: &[BuildingRecord], compare_ids: bool) {
+    assert_eq!(a.len(), b.len());
+    for (x, y) in a.iter().zip(b) {
+        assert_eq!((x.id, x.is_part, &x.tags), (y.id, y.is_part, &y.tags));
+        for (rx, ry) in x
+            .outers
+            .iter()
+            .chain(&x.inners)
+            .zip(y.outers.iter().chain(&y.inners))
+        {
+            assert_eq!(rx.nodes.len(), ry.nodes.len(), "{}", x.id);
+            for (p, q) in rx.nodes.iter().zip(&ry.nodes) {
+                if compare_ids {
+                    assert_eq!(p.id, q.id);
+                }
+                assert!(
+                    (p.lon - q.lon).abs() < 1e-9 && (p.lat - q.lat).abs() < 1e-9,
+                    "{}: {p:?} vs {q:?}",
+                    x.id
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn pbf_and_overpass_json_of_kirchfeld_give_the_same_buildings() {
+    let pbf = read("karlsruhe-kirchfeld.osm.pbf");
+    let json = read("karlsruhe-kirchfeld.overpass.json");
+    assert_same_buildings(&pbf.buildings, &json.buildings, true);
+    // Five multipolygon relations, some with courtyards.
+    let relations: Vec<_> = json
+        .buildings
+        .iter()
+        .filter(|b| matches!(b.id, citymesh_core::osm::OsmId::Relation(_)))
+        .collect();
+    assert_eq!(relations.len(), 5);
+    assert!(relations.iter().any(|r| !r.inners.is_empty()));
+}
+
+/// The real kirchfeld document rewritten in the `out geom;` layout: coordinates inline in ways and
+/// relation members, no separate nodes.
+fn as_out_geom(doc: &Value) -> Value {
+    let elements = doc["elements"].as_array().unwrap();
+    let nodes: HashMap<i64, Value> = elements
+        .iter()
+        .filter(|e| e["type"] == "node")
+        .map(|e| {
+            (
+                e["id"].as_i64().unwrap(),
+                json!({"lat": e["lat"], "lon": e["lon"]}),
+            )
+        })
+        .collect();
+    let ways: HashMap<i64, &Value> = elements
+        .iter()
+        .filter(|e| e["type"] == "way")
+        .map(|e| (e["id"].as_i64().unwrap(), e))
+        .collect();
+    let geometry = |way: &Value| -> Value {
+        way["nodes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|id| nodes[&id.as_i64().unwrap()].clone())
+            .collect()
+    };
+    let mut out = Vec::new();
+    for e in elements {
+        if e["type"] == "way" {
+            let mut w = e.clone();
+            w["geometry"] = geometry(e);
+            out.push(w);
+        } else if e["type"] == "relation" {
+            let mut r = e.clone();
+            for m in r["members"].as_array_mut().unwrap() {
+                m["geometry"] = geometry(ways[&m["ref"].as_i64().unwrap()]);
+            }
+            out.push(r);
+        }
+    }
+    json!({"elements": out})
+}
+
+#[test]
+fn the_out_geom_layout_gives_the_same_buildings() {
+    let doc: Value = serde_json::from_slice(&bytes("karlsruhe-kirchfeld.overpass.json")).unwrap();
+    let geom = read_buildings(&serde_json::to_vec(&as_out_geom(&doc)).unwrap()).unwrap();
+    let json = read("karlsruhe-kirchfeld.overpass.json");
+    assert_eq!(geom.skipped, vec![]);
+    // Way nodes keep their ids (the layout lists them); relation members only have coordinates.
+    assert_same_buildings(&geom.buildings, &json.buildings, false);
+}
+
+#[test]
+fn missing_nodes_and_members_are_skipped_and_the_rest_kept() {
+    let mut doc: Value =
+        serde_json::from_slice(&bytes("karlsruhe-kirchfeld.overpass.json")).unwrap();
+    let elements = doc["elements"].as_array_mut().unwrap();
+    // Drop the first node of way 35538135 and the inner member way of relation 1776559.
+    let way = elements
+        .iter()
+        .find(|e| e["type"] == "way" && e["id"] == 35538135)
+        .unwrap()
+        .clone();
+    let first_node = way["nodes"][0].as_i64().unwrap();
+    elements.retain(|e| {
+        !(e["type"] == "node" && e["id"] == first_node)
+            && !(e["type"] == "way" && e["id"] == 132344585)
+    });
+    let b = read_buildings(&serde_json::to_vec(&doc).unwrap()).unwrap();
+    let reasons: Vec<String> = b
+        .skipped
+        .iter()
+        .map(|s| format!("{} {}", s.id, s.reason.name()))
+        .collect();
+    // The dropped node is shared with a neighbour, which loses it too.
+    assert!(
+        reasons.contains(&"way/35538135 missing_nodes".to_owned()),
+        "{reasons:?}"
+    );
+    assert!(
+        reasons.contains(&"relation/1776559 missing_members".to_owned()),
+        "{reasons:?}"
+    );
+    assert_eq!(b.buildings.len() + b.skipped.len(), 2995 + 31);
+}
