@@ -4,6 +4,7 @@
 //! ground grid ([`terrain`]), and the mesh type with its glTF/GLB writer ([`mesh`]). It performs no
 //! I/O: callers hand it bytes and receive bytes. Nothing here knows about HTTP, files or async.
 
+pub mod building;
 pub mod geo;
 pub mod mesh;
 pub mod osm;
