@@ -155,8 +155,9 @@ fn missing_nodes_and_members_are_skipped_and_the_rest_kept() {
         .clone();
     let first_node = way["nodes"][0].as_i64().unwrap();
     elements.retain(|e| {
-        !(e["type"] == "node" && e["id"] == first_node)
-            && !(e["type"] == "way" && e["id"] == 132344585)
+        let dropped_node = e["type"] == "node" && e["id"] == first_node;
+        let dropped_way = e["type"] == "way" && e["id"] == 132344585;
+        !(dropped_node || dropped_way)
     });
     let b = read_buildings(&serde_json::to_vec(&doc).unwrap()).unwrap();
     let reasons: Vec<String> = b
