@@ -1,8 +1,21 @@
-//! A scene: everything generated for one bounding box, in one local frame, ready to encode.
+//! A scene: everything generated for one bounding box, in one local frame, ready to encode: the
+//! ground grid and the buildings standing on it.
 
+use crate::building::{BuildingContext, BuildingStats, generate_cluster};
 use crate::geo::{GeoBbox, LocalFrame};
 use crate::mesh::{GlbOrigin, Mesh, write_glb};
+use crate::osm::BuildingRecord;
 use crate::terrain::{ElevationModel, GroundReport, build_ground};
+use std::ops::Range;
+
+/// How buildings meet the border of the scene's box.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Border {
+    /// Cut at the border (`/scene.glb`, METHOD.md section 5).
+    Truncate,
+    /// Kept whole (tiles: each cluster lands in exactly one tile).
+    Whole,
+}
 
 /// The generated mesh of a bounding box and what went into it.
 #[derive(Debug, Clone)]
@@ -10,20 +23,48 @@ pub struct Scene {
     pub frame: LocalFrame,
     pub mesh: Mesh,
     pub ground: GroundReport,
+    pub buildings: BuildingStats,
+    /// The triangles of each cluster of buildings, in order (for checks).
+    pub cluster_triangles: Vec<Range<usize>>,
 }
 
 impl Scene {
     /// The ground of `bbox` from `model`, in a frame whose origin is the box centre at 0 m
     /// (mean sea level), so all tiles and scenes share one height reference.
     pub fn ground(model: &ElevationModel, bbox: &GeoBbox) -> Self {
+        Self::new(model, bbox, &[], Border::Whole)
+    }
+
+    /// The ground of `bbox` and the buildings of `clusters` (each a list of records generated
+    /// together, see [`crate::building::clusters`]).
+    pub fn new(
+        model: &ElevationModel,
+        bbox: &GeoBbox,
+        clusters: &[Vec<&BuildingRecord>],
+        border: Border,
+    ) -> Self {
         let (lon, lat) = bbox.center();
         let frame = LocalFrame::new(lon, lat, 0.0);
         let mut mesh = Mesh::default();
         let ground = build_ground(model, bbox, &frame, &mut mesh);
+        let ctx = BuildingContext {
+            frame: &frame,
+            elevation: model,
+            clip: (border == Border::Truncate).then_some(*bbox),
+        };
+        let mut buildings = BuildingStats::default();
+        let mut cluster_triangles = Vec::with_capacity(clusters.len());
+        for cluster in clusters {
+            let start = mesh.triangles.len();
+            generate_cluster(cluster, &ctx, &mut mesh, &mut buildings);
+            cluster_triangles.push(start..mesh.triangles.len());
+        }
         Self {
             frame,
             mesh,
             ground,
+            buildings,
+            cluster_triangles,
         }
     }
 

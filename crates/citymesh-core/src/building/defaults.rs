@@ -6,6 +6,7 @@
 //! | levels by building type | see [`default_levels`] (2 when the type is unknown) |
 //! | roof shape | flat |
 //! | roof pitch | 30 degrees, when neither `roof:height`, `roof:angle` nor `roof:levels` is given |
+//! | lowest wall under a roof | 0.5 m: taller roofs are cut down |
 //! | half-hipped HE, gambrel GP, mansard MP | 0.7 each |
 //! | wall colour | by `building:material`, else plaster `#e8e0d0` |
 //! | roof colour | by `roof:material`, else grey `#8a8a8a` (flat) or tile red `#a0522d` (pitched) |
@@ -14,6 +15,10 @@ use crate::mesh::Rgb;
 
 /// Height of one storey in metres (the paper suggests 3 to 4 m).
 pub const LEVEL_HEIGHT: f64 = 3.0;
+
+/// The lowest walls citymesh builds under a roof, metres: a roof taller than the building allows
+/// is cut down to leave this much wall.
+pub const MIN_WALL_HEIGHT: f64 = 0.5;
 
 /// Roof pitch in degrees when nothing says how high a pitched roof is.
 pub const DEFAULT_PITCH_DEGREES: f64 = 30.0;

@@ -1,9 +1,27 @@
-//! Buildings: from a building record to closed volumes in the local frame. Tags become parameters
-//! ([`tags`], [`params`], with every default in [`defaults`]); the footprint gets its alternative
-//! coordinates ([`axes`]); a roof shape ([`roof`]) gives the top; [`volume`] closes it all into a
-//! watertight mesh.
+//! Buildings: from OSM building records to closed volumes in the local frame.
+//!
+//! Tags become parameters ([`tags`], [`params`], every default in [`defaults`]); the footprint
+//! ([`footprint`]) gets its alternative coordinates ([`axes`]); a roof shape ([`roof`]) over the
+//! virtual rectangle gives the roof surface ([`roof_surface`]), whose dividing segments cut the
+//! footprint ([`boundary`]); the roof and floor are triangulated ([`triangulate`]) and walls added
+//! ([`walls`]); touching volumes are meshed together without hidden walls ([`group`], grouped by
+//! [`cluster`]). [`generate`] runs it all for one cluster and counts into [`stats`].
 
 pub mod axes;
+pub mod boundary;
+pub mod cluster;
 pub mod defaults;
+pub mod footprint;
+pub mod generate;
+pub mod group;
+pub mod params;
 pub mod roof;
+pub mod roof_surface;
+pub mod stats;
 pub mod tags;
+pub mod triangulate;
+pub mod walls;
+
+pub use cluster::clusters;
+pub use generate::{BuildingContext, generate_cluster};
+pub use stats::BuildingStats;

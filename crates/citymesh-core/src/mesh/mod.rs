@@ -3,9 +3,11 @@
 //! Positions are `[east, north, up]` metres in a [`crate::geo::LocalFrame`]; triangles are
 //! counter-clockwise seen from outside; every triangle carries a [`FaceStyle`] (flat shading).
 
+pub mod check;
 mod colour;
 mod glb;
 
+pub use check::{ClosedReport, check_closed};
 pub use colour::Rgb;
 pub use glb::{GlbOrigin, write_glb};
 

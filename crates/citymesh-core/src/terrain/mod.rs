@@ -8,6 +8,7 @@ mod elevation;
 mod ground;
 mod hgt;
 mod model;
+mod range;
 
 pub use elevation::corner_height;
 pub use ground::{GroundReport, build_ground};

@@ -124,7 +124,12 @@ pub(crate) fn tidy(faces: Vec<Vec<Alt>>) -> Vec<Vec<Alt>> {
 
 /// The model of a shape. `ra`, `rb`: half-lengths along and across the ridge (metres);
 /// `parameter`: HE, GP or MP for half-hipped, gambrel and mansard (defaults used when `None`).
-pub fn model(shape: RoofShape, ra: f64, rb: f64, parameter: Option<f64>) -> Box<dyn RoofModel> {
+pub fn model(
+    shape: RoofShape,
+    ra: f64,
+    rb: f64,
+    parameter: Option<f64>,
+) -> Box<dyn RoofModel + Send + Sync> {
     use super::defaults::{GAMBREL_GP, HALF_HIPPED_HE, MANSARD_MP};
     match shape {
         RoofShape::Flat => Box::new(Flat),

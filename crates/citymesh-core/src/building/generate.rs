@@ -1,0 +1,294 @@
+//! From OSM building records to meshed volumes, one cluster at a time: footprints in the local
+//! frame, parameters from tags, the roof over the whole outline, heights over the ground, parts cut
+//! out of their outline, truncation at the scene border, and the group mesh. A record that cannot
+//! be built is skipped with a reason; the others still render.
+
+use super::axes::RoofAxes;
+use super::cluster::part_of;
+use super::footprint::{Footprint, FootprintError, FootprintRing, NodeKey};
+use super::group::{Volume, mesh_group};
+use super::params::BuildingParams;
+use super::roof::RoofShape;
+use super::roof_surface::RoofSurface;
+use super::stats::BuildingStats;
+use super::tags::BuildingTags;
+use crate::geo::{GeoBbox, LocalFrame};
+use crate::mesh::Mesh;
+use crate::osm::{BuildingRecord, Ring};
+use crate::terrain::ElevationModel;
+use geo::{BooleanOps, Coord, LineString, MultiPolygon, Polygon};
+
+/// What every building of a scene is generated against.
+pub struct BuildingContext<'a> {
+    pub frame: &'a LocalFrame,
+    pub elevation: &'a ElevationModel,
+    /// Truncate buildings at this box (`/scene.glb`); `None` keeps them whole (tiles).
+    pub clip: Option<GeoBbox>,
+}
+
+/// Pieces of outline left over by parts smaller than this (m²) are slivers, not rooms.
+const MIN_PIECE_AREA: f64 = 1.0;
+
+/// One record turned into footprints (one per outer ring) and parameters.
+struct Prepared<'r> {
+    record: &'r BuildingRecord,
+    /// Each outer ring with its courtyards, in metres.
+    footprints: Vec<Footprint>,
+    tags: BuildingTags,
+}
+
+/// Generates the buildings of one cluster into `mesh`, counting into `stats`.
+pub fn generate_cluster(
+    records: &[&BuildingRecord],
+    ctx: &BuildingContext,
+    mesh: &mut Mesh,
+    stats: &mut BuildingStats,
+) {
+    let mut prepared: Vec<Prepared> = Vec::with_capacity(records.len());
+    for &record in records {
+        match prepare(record, ctx.frame) {
+            Ok(p) => prepared.push(p),
+            Err(e) => stats.skip(record.id, footprint_reason(e)),
+        }
+    }
+
+    // Which outline each part stands in.
+    let outline_of: Vec<Option<usize>> = prepared
+        .iter()
+        .map(|p| {
+            if !p.record.is_part {
+                return None;
+            }
+            prepared
+                .iter()
+                .position(|o| !o.record.is_part && part_of(p.record, o.record))
+        })
+        .collect();
+
+    let mut roofs: Vec<RoofSurface> = Vec::new();
+    let mut volumes: Vec<Volume> = Vec::new();
+    for (i, p) in prepared.iter().enumerate() {
+        let parts: Vec<&Prepared> = (0..prepared.len())
+            .filter(|&j| outline_of[j] == Some(i))
+            .map(|j| &prepared[j])
+            .collect();
+        // Parts stand on the ground of their outline, so they line up.
+        let ground_ring = match outline_of[i] {
+            Some(o) => &prepared[o].record.outers,
+            None => &p.record.outers,
+        };
+        stats.invalid_tags += p.tags.invalid.len();
+        let mut produced = false;
+        for (k, footprint) in p.footprints.iter().enumerate() {
+            let Some(axes) = RoofAxes::of_ring(&footprint.outer.points).map(RoofAxes::long_first)
+            else {
+                stats.skip(p.record.id, "degenerate_footprint");
+                continue;
+            };
+            let shape = params_shape(&p.tags);
+            let surface = RoofSurface::new(
+                shape,
+                axes,
+                p.tags.orientation,
+                &footprint.outer.points,
+                p.tags.direction,
+                None,
+            );
+            let params = BuildingParams::new(&p.tags, surface.run());
+            let ring: Vec<(f64, f64)> = ground_ring
+                .get(k)
+                .or(ground_ring.first())
+                .map(|r| r.nodes.iter().map(|n| (n.lon, n.lat)).collect())
+                .unwrap_or_default();
+            let (elev_min, elev_max) = ctx.elevation.height_range_along(&ring);
+            let floor = elev_min + params.min_height;
+            let top = elev_max + params.height;
+            let surface = surface.with_heights(top, params.roof_height);
+
+            // Outline minus its parts, then truncated at the scene border.
+            let mut pieces = vec![footprint.clone()];
+            if !parts.is_empty() {
+                let cut: Vec<&Footprint> = parts.iter().flat_map(|q| &q.footprints).collect();
+                pieces = subtract(footprint, &cut);
+                if pieces.is_empty() {
+                    stats.outlines_covered_by_parts += 1;
+                }
+            }
+            if let Some(clip) = ctx.clip {
+                pieces = pieces
+                    .iter()
+                    .flat_map(|f| truncate(f, &clip, ctx.frame))
+                    .collect();
+            }
+            if pieces.is_empty() {
+                continue;
+            }
+            produced = true;
+            roofs.push(surface);
+            for piece in pieces {
+                volumes.push(Volume {
+                    footprint: piece,
+                    roof: roofs.len() - 1,
+                    floor,
+                    wall_colour: params.wall_colour,
+                    roof_colour: params.roof_colour,
+                });
+            }
+            if k == 0 {
+                stats.count(p.record.is_part, &params);
+            }
+        }
+        if produced {
+            stats.generated += 1;
+        }
+    }
+    let report = mesh_group(&volumes, &roofs, mesh);
+    stats.shared_walls += report.shared_edges;
+    stats.dropped_constraints += report.dropped_constraints;
+}
+
+fn params_shape(tags: &BuildingTags) -> RoofShape {
+    match &tags.roof_shape {
+        Some(super::tags::ShapeTag::Known(s)) => *s,
+        _ => RoofShape::Flat,
+    }
+}
+
+fn footprint_reason(e: FootprintError) -> &'static str {
+    match e {
+        FootprintError::TooFewPoints => "too_few_nodes",
+        FootprintError::NoArea => "no_area",
+        FootprintError::SelfIntersecting => "self_intersecting",
+        FootprintError::NotFinite => "not_finite",
+    }
+}
+
+/// Projects a ring; keys are OSM node ids, or the exact lon/lat where the source has no ids.
+fn project(ring: &Ring, frame: &LocalFrame) -> FootprintRing {
+    let mut points = Vec::with_capacity(ring.nodes.len());
+    let mut keys = Vec::with_capacity(ring.nodes.len());
+    for n in &ring.nodes {
+        let p = frame.to_local(n.lon, n.lat, 0.0);
+        points.push([p[0], p[1]]);
+        keys.push(match n.id {
+            Some(id) => NodeKey::Osm(id),
+            None => NodeKey::At(n.lon.to_bits(), n.lat.to_bits()),
+        });
+    }
+    FootprintRing::new(points, keys)
+}
+
+fn prepare<'r>(
+    record: &'r BuildingRecord,
+    frame: &LocalFrame,
+) -> Result<Prepared<'r>, FootprintError> {
+    let inners: Vec<FootprintRing> = record.inners.iter().map(|r| project(r, frame)).collect();
+    let mut footprints = Vec::with_capacity(record.outers.len());
+    let mut last_error = FootprintError::TooFewPoints;
+    for outer in &record.outers {
+        let outer = project(outer, frame);
+        // Courtyards go with the outer ring that holds them.
+        let holes: Vec<FootprintRing> = inners
+            .iter()
+            .filter(|h| {
+                h.points
+                    .first()
+                    .is_some_and(|p| super::footprint::inside(&outer.points, *p))
+            })
+            .cloned()
+            .collect();
+        match Footprint::new(outer, holes) {
+            Ok(f) => footprints.push(f),
+            Err(e) => last_error = e,
+        }
+    }
+    if footprints.is_empty() {
+        return Err(last_error);
+    }
+    Ok(Prepared {
+        record,
+        tags: BuildingTags::read(&record.tags),
+        footprints,
+    })
+}
+
+fn to_polygon(f: &Footprint) -> Polygon<f64> {
+    let ring = |r: &FootprintRing| {
+        LineString::new(
+            r.points
+                .iter()
+                .map(|p| Coord { x: p[0], y: p[1] })
+                .collect(),
+        )
+    };
+    Polygon::new(ring(&f.outer), f.holes.iter().map(ring).collect())
+}
+
+/// Boolean results in footprints again, each point snapped back to the input point it came from
+/// (so it keeps its node key and exact coordinates); new points get coordinate keys.
+fn from_multipolygon(mp: MultiPolygon<f64>, sources: &[&Footprint]) -> Vec<Footprint> {
+    let originals: Vec<([f64; 2], NodeKey)> = sources
+        .iter()
+        .flat_map(|f| f.rings())
+        .flat_map(|r| r.points.iter().copied().zip(r.keys.iter().copied()))
+        .collect();
+    let snap = |c: &Coord<f64>| -> ([f64; 2], NodeKey) {
+        let p = [c.x, c.y];
+        originals
+            .iter()
+            .find(|(q, _)| (q[0] - p[0]).abs() < 1e-5 && (q[1] - p[1]).abs() < 1e-5)
+            .copied()
+            .unwrap_or((p, NodeKey::at(p)))
+    };
+    let ring = |ls: &LineString<f64>| {
+        let mut coords: Vec<&Coord<f64>> = ls.0.iter().collect();
+        if coords.len() > 1 && coords.first() == coords.last() {
+            coords.pop();
+        }
+        let (points, keys): (Vec<_>, Vec<_>) = coords.into_iter().map(snap).unzip();
+        FootprintRing::new(points, keys)
+    };
+    mp.0.iter()
+        .filter_map(|poly| {
+            let f = Footprint::new(ring(poly.exterior()), poly.interiors().iter().map(ring).collect()).ok()?;
+            (f.area() >= MIN_PIECE_AREA).then_some(f)
+        })
+        .collect()
+}
+
+/// The footprint minus the parts standing in it.
+fn subtract(footprint: &Footprint, parts: &[&Footprint]) -> Vec<Footprint> {
+    let cut: MultiPolygon<f64> = MultiPolygon::new(parts.iter().map(|p| to_polygon(p)).collect());
+    let rest = to_polygon(footprint).difference(&cut);
+    let mut sources = vec![footprint];
+    sources.extend_from_slice(parts);
+    from_multipolygon(rest, &sources)
+}
+
+/// The footprint cut to the scene box; whole when it lies inside.
+fn truncate(footprint: &Footprint, clip: &GeoBbox, frame: &LocalFrame) -> Vec<Footprint> {
+    let lo = frame.to_local(clip.min_lon(), clip.min_lat(), 0.0);
+    let hi = frame.to_local(clip.max_lon(), clip.max_lat(), 0.0);
+    let inside = footprint
+        .outer
+        .points
+        .iter()
+        .all(|p| p[0] >= lo[0] && p[0] <= hi[0] && p[1] >= lo[1] && p[1] <= hi[1]);
+    if inside {
+        return vec![footprint.clone()];
+    }
+    let outside = footprint
+        .outer
+        .points
+        .iter()
+        .all(|p| p[0] < lo[0])
+        || footprint.outer.points.iter().all(|p| p[0] > hi[0])
+        || footprint.outer.points.iter().all(|p| p[1] < lo[1])
+        || footprint.outer.points.iter().all(|p| p[1] > hi[1]);
+    if outside {
+        return Vec::new();
+    }
+    let rect = geo::Rect::new(Coord { x: lo[0], y: lo[1] }, Coord { x: hi[0], y: hi[1] });
+    let cut = to_polygon(footprint).intersection(&rect.to_polygon());
+    from_multipolygon(cut, &[footprint])
+}

@@ -1,0 +1,212 @@
+//! The roof of one building as a height function over the plane: the virtual rectangle of the
+//! footprint (turned for `roof:orientation`, or along `roof:direction` for skillions), a roof
+//! model's descending level function, and the heights of eaves and top (METHOD.md sections 4-6).
+
+use super::axes::RoofAxes;
+use super::roof::{Alt, RoofModel, RoofShape, model};
+use super::tags::Orientation;
+
+/// A roof: `height(p) = top - roof_height * DLF(x'(p), y'(p))`.
+pub struct RoofSurface {
+    pub shape: RoofShape,
+    /// The alternative coordinates: `a = x'` runs along the ridge, `b = y'` across it.
+    pub axes: RoofAxes,
+    model: Box<dyn RoofModel + Send + Sync>,
+    /// Height of the top (ridge), metres in the local frame.
+    pub top: f64,
+    /// Height of the roof from eaves to top, metres (0 for flat roofs).
+    pub roof_height: f64,
+}
+
+impl RoofSurface {
+    /// The roof over a footprint whose axes were found from its whole outline. `axes` must already
+    /// put the longer side first ([`RoofAxes::long_first`]); `direction` is `roof:direction` in
+    /// degrees from north, used by skillions only; `parameter` is HE, GP or MP when known.
+    pub fn new(
+        shape: RoofShape,
+        axes: RoofAxes,
+        orientation: Orientation,
+        outer: &[[f64; 2]],
+        direction: Option<f64>,
+        parameter: Option<f64>,
+    ) -> Self {
+        let axes = match shape {
+            RoofShape::Skillion => {
+                // The roof descends towards `roof:direction`; without one, across the long side.
+                let dir = direction.map_or([-axes.m[0], -axes.m[1]], |d| {
+                    let r = d.to_radians();
+                    [r.sin(), r.cos()]
+                });
+                RoofAxes::along(outer, dir).unwrap_or(axes)
+            }
+            _ if orientation == Orientation::Across => swap(axes),
+            _ => axes,
+        };
+        Self {
+            shape,
+            model: model(shape, axes.rx, axes.ry, parameter),
+            axes,
+            top: 0.0,
+            roof_height: 0.0,
+        }
+    }
+
+    /// Sets the heights: the top of the roof and the roof's own height (eaves to top).
+    pub fn with_heights(mut self, top: f64, roof_height: f64) -> Self {
+        self.top = top;
+        self.roof_height = if self.shape == RoofShape::Flat {
+            0.0
+        } else {
+            roof_height
+        };
+        self
+    }
+
+    /// The distance in metres a slope of `angle_degrees` needs to rise by `h` over this roof: the
+    /// horizontal run from eaves to top.
+    pub fn run(&self) -> f64 {
+        match self.shape {
+            RoofShape::Flat => 0.0,
+            // A skillion rises over the whole length of its slope axis.
+            RoofShape::Skillion => 2.0 * self.axes.rx,
+            RoofShape::Pyramidal => self.axes.rx.min(self.axes.ry),
+            _ => self.axes.ry,
+        }
+    }
+
+    /// The descending level function at a point in metres.
+    #[inline]
+    pub fn dlf(&self, p: [f64; 2]) -> f64 {
+        self.model.dlf(self.axes.to_alt(p))
+    }
+
+    /// The roof height at a point in metres.
+    #[inline]
+    pub fn height_at(&self, p: [f64; 2]) -> f64 {
+        if self.roof_height == 0.0 {
+            return self.top;
+        }
+        self.top - self.roof_height * self.dlf(p)
+    }
+
+    /// Whether the roof is one plane (so it needs no dividing segments).
+    pub fn is_planar(&self) -> bool {
+        self.roof_height == 0.0 || matches!(self.shape, RoofShape::Flat | RoofShape::Skillion)
+    }
+
+    /// The dividing segments of the shape in metres: the edges between virtual faces, where the
+    /// roof bends (METHOD.md section 5).
+    pub fn dividing_segments(&self) -> Vec<[[f64; 2]; 2]> {
+        if self.is_planar() {
+            return Vec::new();
+        }
+        let mut segments: Vec<[Alt; 2]> = Vec::new();
+        for face in self.model.faces() {
+            let n = face.len();
+            for i in 0..n {
+                let (p, q) = (face[i], face[(i + 1) % n]);
+                if on_same_square_side(p, q) {
+                    continue;
+                }
+                let key = if (p[0], p[1]) < (q[0], q[1]) {
+                    [p, q]
+                } else {
+                    [q, p]
+                };
+                if !segments.contains(&key) {
+                    segments.push(key);
+                }
+            }
+        }
+        segments
+            .into_iter()
+            .map(|[p, q]| [self.axes.from_alt(p), self.axes.from_alt(q)])
+            .collect()
+    }
+}
+
+/// The same rectangle with the roles of x' and y' exchanged (`roof:orientation=across`).
+fn swap(a: RoofAxes) -> RoofAxes {
+    RoofAxes {
+        n: a.m,
+        m: a.n,
+        x0: a.y0,
+        rx: a.ry,
+        y0: a.x0,
+        ry: a.rx,
+    }
+}
+
+/// Whether an edge of a virtual face lies on the border of the square [-1, 1]².
+fn on_same_square_side(p: Alt, q: Alt) -> bool {
+    (0..2).any(|k| (p[k] == q[k]) && p[k].abs() == 1.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rectangle() -> (Vec<[f64; 2]>, RoofAxes) {
+        let ring = vec![[0.0, 0.0], [20.0, 0.0], [20.0, 8.0], [0.0, 8.0]];
+        let axes = RoofAxes::of_ring(&ring).unwrap().long_first();
+        (ring, axes)
+    }
+
+    #[test]
+    fn gabled_has_one_ridge_along_the_long_side() {
+        let (ring, axes) = rectangle();
+        let roof = RoofSurface::new(
+            RoofShape::Gabled,
+            axes,
+            Orientation::Along,
+            &ring,
+            None,
+            None,
+        )
+        .with_heights(10.0, 4.0);
+        let segments = roof.dividing_segments();
+        assert_eq!(segments.len(), 1);
+        let [p, q] = segments[0];
+        // The ridge runs from (0, 4) to (20, 4) in some order.
+        assert!((p[1] - 4.0).abs() < 1e-9 && (q[1] - 4.0).abs() < 1e-9);
+        assert!(((p[0] - q[0]).abs() - 20.0).abs() < 1e-9);
+        assert!((roof.height_at([5.0, 4.0]) - 10.0).abs() < 1e-12);
+        assert!((roof.height_at([5.0, 0.0]) - 6.0).abs() < 1e-12);
+        assert!((roof.height_at([5.0, 2.0]) - 8.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn across_turns_the_ridge() {
+        let (ring, axes) = rectangle();
+        let roof = RoofSurface::new(
+            RoofShape::Gabled,
+            axes,
+            Orientation::Across,
+            &ring,
+            None,
+            None,
+        )
+        .with_heights(10.0, 4.0);
+        // Now the ridge is the line x = 10.
+        assert!((roof.height_at([10.0, 1.0]) - 10.0).abs() < 1e-12);
+        assert!((roof.height_at([0.0, 1.0]) - 6.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn skillion_descends_towards_its_direction() {
+        let (ring, axes) = rectangle();
+        // roof:direction = 90: the roof falls towards the east.
+        let roof = RoofSurface::new(
+            RoofShape::Skillion,
+            axes,
+            Orientation::Along,
+            &ring,
+            Some(90.0),
+            None,
+        )
+        .with_heights(10.0, 2.0);
+        assert!((roof.height_at([0.0, 3.0]) - 10.0).abs() < 1e-12);
+        assert!((roof.height_at([20.0, 3.0]) - 8.0).abs() < 1e-12);
+        assert!(roof.dividing_segments().is_empty());
+    }
+}

@@ -1,0 +1,100 @@
+//! What went into the buildings of a scene: the statistics of the paper's Tables 2 and 3 (share of
+//! flat roofs, roof shapes from tags or defaults) plus what was skipped and why.
+
+use super::params::{BuildingParams, HeightSource, ShapeSource};
+use super::roof::RoofShape;
+use crate::osm::OsmId;
+use serde::Serialize;
+use std::collections::BTreeMap;
+
+/// Building figures of one scene.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct BuildingStats {
+    /// Records (buildings and parts) that produced a volume.
+    pub generated: usize,
+    /// Of those, `building:part`s.
+    pub parts: usize,
+    /// Records that could not be built, by reason.
+    pub skipped: BTreeMap<&'static str, usize>,
+    /// The skipped records themselves (OSM ids, e.g. `way/123`) with their reason.
+    pub skipped_ids: Vec<(String, &'static str)>,
+    /// Generated roofs by shape (OSM `roof:shape` names).
+    pub roof_shapes: BTreeMap<&'static str, usize>,
+    /// Roof shapes named by a `roof:shape` tag among the eight.
+    pub shape_from_tag: usize,
+    /// Roofs without `roof:shape`, given the default (flat).
+    pub shape_default: usize,
+    /// `roof:shape` values outside the eight, rendered flat.
+    pub shape_unsupported: usize,
+    /// Total heights from `height`, from levels, and from the type default.
+    pub height_from_tag: usize,
+    pub height_from_levels: usize,
+    pub height_default: usize,
+    /// Tag values that were present but unusable (the fallback was used).
+    pub invalid_tags: usize,
+    /// Outlines entirely covered by their parts (only the parts are generated).
+    pub outlines_covered_by_parts: usize,
+    /// Edges between touching volumes whose hidden walls were removed.
+    pub shared_walls: usize,
+    /// Roof dividing segments dropped because they crossed another (the roof is still closed).
+    pub dropped_constraints: usize,
+}
+
+impl BuildingStats {
+    pub fn skip(&mut self, id: OsmId, reason: &'static str) {
+        *self.skipped.entry(reason).or_default() += 1;
+        self.skipped_ids.push((id.to_string(), reason));
+    }
+
+    /// Counts the parameters of one generated record.
+    pub fn count(&mut self, is_part: bool, p: &BuildingParams) {
+        if is_part {
+            self.parts += 1;
+        }
+        *self.roof_shapes.entry(p.shape.tag()).or_default() += 1;
+        match p.shape_source {
+            ShapeSource::Tag => self.shape_from_tag += 1,
+            ShapeSource::Default => self.shape_default += 1,
+            ShapeSource::Unsupported => self.shape_unsupported += 1,
+        }
+        match p.height_source {
+            HeightSource::Tag => self.height_from_tag += 1,
+            HeightSource::Levels => self.height_from_levels += 1,
+            HeightSource::TypeDefault => self.height_default += 1,
+        }
+    }
+
+    /// Roofs counted, of any shape.
+    pub fn roofs(&self) -> usize {
+        self.roof_shapes.values().sum()
+    }
+
+    /// Share of flat roofs in percent (paper Tables 2 and 3).
+    pub fn flat_roof_percent(&self) -> f64 {
+        percent(
+            self.roof_shapes
+                .get(RoofShape::Flat.tag())
+                .copied()
+                .unwrap_or(0),
+            self.roofs(),
+        )
+    }
+
+    /// Share of roof shapes that came from tags, in percent.
+    pub fn shape_from_tag_percent(&self) -> f64 {
+        percent(self.shape_from_tag, self.roofs())
+    }
+
+    /// Records skipped, for any reason.
+    pub fn total_skipped(&self) -> usize {
+        self.skipped.values().sum()
+    }
+}
+
+fn percent(part: usize, whole: usize) -> f64 {
+    if whole == 0 {
+        0.0
+    } else {
+        100.0 * part as f64 / whole as f64
+    }
+}
