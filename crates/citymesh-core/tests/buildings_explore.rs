@@ -30,7 +30,7 @@ fn explore() {
         let mut bad = 0;
         for (i, r) in scene.cluster_triangles.iter().enumerate() {
             let rep = check_closed(&scene.mesh, r.clone());
-            if !rep.is_closed_and_outward() {
+            if rep.open_edges > 0 || rep.degenerate > 0 || rep.volume <= 0.0 {
                 bad += 1;
                 if bad <= 5 { eprintln!("{file} cluster {i} ids {:?}: {rep:?}", groups[i].iter().map(|r| r.id.to_string()).collect::<Vec<_>>()); }
             }
@@ -48,7 +48,8 @@ fn debug_one() {
     let recs: Vec<_> = b.buildings.iter().filter(|r| ids.contains(&r.id.to_string())).collect();
     for r in &recs { eprintln!("{} {:?} nodes {:?}", r.id, r.tags, r.outers[0].nodes.iter().map(|n| n.id.unwrap_or(0)).collect::<Vec<_>>()); }
     let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
-    for r in &recs { for n in r.outers.iter().flat_map(|r| &r.nodes) { x0 = x0.min(n.lon); y0 = y0.min(n.lat); x1 = x1.max(n.lon); y1 = y1.max(n.lat);} }
+    let all: Vec<_> = if std::env::var("FULL").is_ok() { b.buildings.iter().collect() } else { recs.clone() };
+    for r in &all { for n in r.outers.iter().flat_map(|r| &r.nodes) { x0 = x0.min(n.lon); y0 = y0.min(n.lat); x1 = x1.max(n.lon); y1 = y1.max(n.lat);} }
     let bbox = GeoBbox::new(x0, y0, x1, y1).unwrap();
     let dem = if file.contains("nuremberg") { vec!["N49E011.hgt"] } else { vec!["N49E008.hgt"] };
     let model = common::model(&dem);
@@ -61,12 +62,39 @@ fn debug_one() {
     let mut directed: HashMap<([i64;3],[i64;3]), Vec<usize>> = HashMap::new();
     for t in r.clone() {
         let c = scene.mesh.corners(scene.mesh.triangles[t]);
+        let ids = c.map(|p| key(p));
+        let (u, w) = ([c[1][0]-c[0][0], c[1][1]-c[0][1], c[1][2]-c[0][2]], [c[2][0]-c[0][0], c[2][1]-c[0][1], c[2][2]-c[0][2]]);
+        let n = [u[1]*w[2]-u[2]*w[1], u[2]*w[0]-u[0]*w[2], u[0]*w[1]-u[1]*w[0]];
+        let a2 = (n[0]*n[0]+n[1]*n[1]+n[2]*n[2]).sqrt();
+        if ids[0] == ids[1] || ids[1] == ids[2] || ids[0] == ids[2] || a2 < 1e-8 { eprintln!("degenerate {:?} {:?}", scene.mesh.styles[t].material, c); }
         for k in 0..3 { directed.entry((key(c[k]), key(c[(k+1)%3]))).or_default().push(t); }
     }
     for ((a, b), ts) in &directed {
         let back = directed.get(&(*b, *a)).map_or(0, |v| v.len());
-        if back != ts.len() {
+        let nm = ts.len() + back > 2 && a < b;
+        if back != ts.len() || nm {
             eprintln!("edge {:?} -> {:?} x{} back {} tris {:?}", a, b, ts.len(), back, ts.iter().map(|&t| (scene.mesh.styles[t].material, scene.mesh.corners(scene.mesh.triangles[t]))).collect::<Vec<_>>());
         }
     }
+}
+
+#[test]
+fn debug_divide() {
+    use citymesh_core::building::{footprint::*, axes::RoofAxes, roof_surface::RoofSurface, boundary::divide, tags::BuildingTags, roof::RoofShape};
+    use citymesh_core::geo::LocalFrame;
+    let b = read_buildings(&bytes("karlsruhe-kirchfeld.osm.pbf")).unwrap();
+    let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+    for r in &b.buildings { for n in r.outers.iter().flat_map(|r| &r.nodes) { x0 = x0.min(n.lon); y0 = y0.min(n.lat); x1 = x1.max(n.lon); y1 = y1.max(n.lat);} }
+    let frame = LocalFrame::new((x0+x1)/2.0, (y0+y1)/2.0, 0.0);
+    let r = b.buildings.iter().find(|r| r.id.to_string() == "way/96784667").unwrap();
+    let ring = FootprintRing::new(r.outers[0].nodes.iter().map(|n| { let p = frame.to_local(n.lon, n.lat, 0.0); [p[0], p[1]] }).collect(), r.outers[0].nodes.iter().map(|n| NodeKey::Osm(n.id.unwrap())).collect());
+    let f = Footprint::new(ring, vec![]).unwrap();
+    eprintln!("{:?}", f.outer);
+    let axes = RoofAxes::of_ring(&f.outer.points).unwrap().long_first();
+    let t = BuildingTags::read(&r.tags);
+    let s = RoofSurface::new(RoofShape::Pyramidal, axes, t.orientation, &f.outer.points, None, None).with_heights(10.0, 3.0);
+    let segs = s.dividing_segments();
+    eprintln!("segs {segs:?}");
+    let d = divide(&f, &segs);
+    eprintln!("{d:?}");
 }

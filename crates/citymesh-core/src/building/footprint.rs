@@ -384,7 +384,7 @@ mod tests {
 
     #[test]
     fn refuses_what_is_not_a_footprint() {
-        let bow_tie = ring(&[[0.0, 0.0], [10.0, 10.0], [10.0, 0.0], [0.0, 10.0]]);
+        let bow_tie = ring(&[[0.0, 0.0], [10.0, 10.0], [10.0, 0.0], [0.0, 4.0]]);
         assert_eq!(
             Footprint::new(bow_tie, vec![]),
             Err(FootprintError::SelfIntersecting)

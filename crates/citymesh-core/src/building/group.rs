@@ -262,7 +262,8 @@ fn mesh_volume(
         }
     }
 
-    let planar = triangulate(&v.footprint, points, &ranges, &constraints);
+    let on_edge: Vec<bool> = ring_points.iter().flatten().map(|p| p.node.is_none()).collect();
+    let planar = triangulate(&v.footprint, points, &ranges, &constraints, &on_edge);
     let roof_style = FaceStyle {
         material: Material::Roof,
         colour: v.roof_colour,

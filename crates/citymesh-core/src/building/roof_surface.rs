@@ -118,10 +118,61 @@ impl RoofSurface {
                 }
             }
         }
+        // Only where the roof really bends: limit parameters (gambrel GP = 0.5, a flat mansard)
+        // leave segments across which the roof is one plane.
+        segments.retain(|&[p, q]| self.bends_across(p, q));
+        join_collinear(&mut segments);
         segments
             .into_iter()
             .map(|[p, q]| [self.axes.from_alt(p), self.axes.from_alt(q)])
             .collect()
+    }
+
+    /// Whether the DLF has a kink across the segment `p`-`q` (alternative coordinates).
+    fn bends_across(&self, p: Alt, q: Alt) -> bool {
+        let m = [(p[0] + q[0]) / 2.0, (p[1] + q[1]) / 2.0];
+        let d = [q[0] - p[0], q[1] - p[1]];
+        let len = d[0].hypot(d[1]);
+        let e = 1e-4;
+        let n = [-d[1] / len * e, d[0] / len * e];
+        let f = |a: Alt| self.model.dlf(a);
+        let (l, c, r) = (f([m[0] + n[0], m[1] + n[1]]), f(m), f([m[0] - n[0], m[1] - n[1]]));
+        (l + r - 2.0 * c).abs() > 1e-9
+    }
+}
+
+/// Joins segments that continue each other in a straight line through a point no other segment
+/// touches, so a limit shape has the very same vertices as the shape it equals.
+fn join_collinear(segments: &mut Vec<[Alt; 2]>) {
+    loop {
+        let mut joined = false;
+        'outer: for i in 0..segments.len() {
+            for j in i + 1..segments.len() {
+                let (a, b) = (segments[i], segments[j]);
+                for (shared, x, y) in [
+                    (a[0], a[1], if b[0] == a[0] { b[1] } else { b[0] }),
+                    (a[1], a[0], if b[0] == a[1] { b[1] } else { b[0] }),
+                ] {
+                    if b[0] != shared && b[1] != shared {
+                        continue;
+                    }
+                    let degree = segments
+                        .iter()
+                        .filter(|s| s[0] == shared || s[1] == shared)
+                        .count();
+                    let cross = (shared[0] - x[0]) * (y[1] - x[1]) - (shared[1] - x[1]) * (y[0] - x[0]);
+                    if degree == 2 && cross.abs() < 1e-12 {
+                        segments[i] = [x, y];
+                        segments.swap_remove(j);
+                        joined = true;
+                        break 'outer;
+                    }
+                }
+            }
+        }
+        if !joined {
+            return;
+        }
     }
 }
 

@@ -21,14 +21,18 @@ pub struct PlanarMesh {
 /// Triangulates the region inside `footprint` whose boundary is `rings` (indices into `points`,
 /// each ring in order, counter-clockwise outer and clockwise holes), with extra `constraints`.
 /// Points past the rings' points are interior points; the result may add a centre point.
+///
+/// `on_edge[i]` is true for ring points that were added on an edge (not nodes): they lie on a
+/// straight line with their neighbours, and no triangle may span them (see [`open_chords`]).
 pub fn triangulate(
     footprint: &Footprint,
     mut points: Vec<[f64; 2]>,
     rings: &[std::ops::Range<usize>],
     constraints: &[[usize; 2]],
+    on_edge: &[bool],
 ) -> PlanarMesh {
     if rings.len() == 1 && constraints.is_empty() && points.len() == rings[0].len() {
-        if let Some(triangles) = convex_fan(&mut points) {
+        if let Some(triangles) = convex_fan(&mut points, on_edge) {
             return PlanarMesh {
                 points,
                 triangles,
@@ -79,11 +83,15 @@ pub fn triangulate(
             for (i, h) in handles.iter().enumerate().rev() {
                 remap[h.index()] = i as u32;
             }
-            return collect(footprint, points, rings, &cdt, &remap, dropped);
+            let mut m = collect(footprint, points, rings, &cdt, &remap, dropped);
+            open_chords(&mut m.triangles, rings, on_edge);
+            return m;
         }
     };
     let remap: Vec<u32> = (0..n as u32).collect();
-    collect(footprint, points, rings, &cdt, &remap, dropped)
+    let mut m = collect(footprint, points, rings, &cdt, &remap, dropped);
+    open_chords(&mut m.triangles, rings, on_edge);
+    m
 }
 
 /// Keeps the triangles inside the footprint: starting from the outside, crossing a ring edge
@@ -173,6 +181,64 @@ fn collect(
     }
 }
 
+/// Points added on a footprint edge lie on the edge's line only up to rounding, so a triangulation
+/// may join the edge's two ends by a chord and leave a sliver of no area between the chord and the
+/// points on it. This removes such slivers and replaces each triangle on a chord by a fan from its
+/// third corner to every point of the chain, so no triangle is degenerate and the ring edges stay
+/// triangle edges.
+fn open_chords(triangles: &mut Vec<[u32; 3]>, rings: &[std::ops::Range<usize>], on_edge: &[bool]) {
+    if !on_edge.iter().any(|&b| b) {
+        return;
+    }
+    let next = |i: usize| {
+        rings
+            .iter()
+            .find(|r| r.contains(&i))
+            .map(|r| if i + 1 == r.end { r.start } else { i + 1 })
+    };
+    let added = |i: usize| on_edge.get(i).copied().unwrap_or(false);
+    // The chain from a to b along the ring through added points only, when there is one.
+    let chain = |a: usize, b: usize| -> Option<Vec<usize>> {
+        let mut out = vec![a];
+        let mut p = next(a)?;
+        while p != b {
+            if !added(p) || out.len() > on_edge.len() {
+                return None;
+            }
+            out.push(p);
+            p = next(p)?;
+        }
+        (out.len() > 1).then(|| {
+            out.push(b);
+            out
+        })
+    };
+    let mut work: Vec<[u32; 3]> = std::mem::take(triangles);
+    let mut guard = 0usize;
+    while let Some(t) = work.pop() {
+        guard += 1;
+        if guard > 1_000_000 {
+            break;
+        }
+        let mut replaced = false;
+        for k in 0..3 {
+            let (a, b, w) = (t[k] as usize, t[(k + 1) % 3] as usize, t[(k + 2) % 3] as usize);
+            if let Some(c) = chain(a, b) {
+                if !c.contains(&w) {
+                    for pair in c.windows(2) {
+                        work.push([pair[0] as u32, pair[1] as u32, w as u32]);
+                    }
+                }
+                replaced = true;
+                break;
+            }
+        }
+        if !replaced {
+            triangles.push(t);
+        }
+    }
+}
+
 /// spade refuses coordinates that are tiny but not zero.
 #[inline]
 fn flush(x: f64) -> f64 {
@@ -181,17 +247,22 @@ fn flush(x: f64) -> f64 {
 
 /// A fan over a convex ring, or `None` when the ring is not convex. With collinear points the fan
 /// starts at an added centre point, so no triangle is degenerate.
-fn convex_fan(points: &mut Vec<[f64; 2]>) -> Option<Vec<[u32; 3]>> {
+fn convex_fan(points: &mut Vec<[f64; 2]>, on_edge: &[bool]) -> Option<Vec<[u32; 3]>> {
     let n = points.len();
-    let mut straight = false;
+    // Points added on an edge are straight by construction, whatever rounding says.
+    let mut straight = on_edge.iter().any(|&b| b);
     for i in 0..n {
+        if on_edge.get(i).copied().unwrap_or(false) {
+            continue;
+        }
         let (a, b, c) = (points[(i + n - 1) % n], points[i], points[(i + 1) % n]);
         let o = orient(a, b, c);
         let scale = (b[0] - a[0]).hypot(b[1] - a[1]) * (c[0] - b[0]).hypot(c[1] - b[1]);
-        if o < -1e-12 * scale {
+        // Within 1e-7 rad of a straight angle, a fan from a neighbour would make a sliver.
+        if o < -1e-7 * scale {
             return None;
         }
-        straight |= o <= 1e-12 * scale;
+        straight |= o <= 1e-7 * scale;
     }
     if !straight {
         return Some((1..n as u32 - 1).map(|i| [0, i, i + 1]).collect());
@@ -240,7 +311,7 @@ mod tests {
         .unwrap();
         let mut points = outer.clone();
         points.extend(&hole);
-        let m = triangulate(&f, points, &[0..5, 5..9], &[]);
+        let m = triangulate(&f, points, &[0..5, 5..9], &[], &[]);
         assert!((area(&m) - 84.0).abs() < 1e-9);
         // The collinear point (5, 0) is a corner of some triangle.
         assert!(m.triangles.iter().any(|t| t.contains(&1)));
@@ -250,7 +321,7 @@ mod tests {
     fn a_convex_ring_with_a_straight_point_fans_from_its_centre() {
         let ring = vec![[0.0, 0.0], [5.0, 0.0], [10.0, 0.0], [10.0, 4.0], [0.0, 4.0]];
         let f = Footprint::new(FootprintRing::from_points(ring.clone()), vec![]).unwrap();
-        let m = triangulate(&f, ring, &[0..5], &[]);
+        let m = triangulate(&f, ring, &[0..5], &[], &[]);
         assert_eq!(m.points.len(), 6);
         assert_eq!(m.triangles.len(), 5);
         assert!(m.triangles.iter().all(|t| {
@@ -266,7 +337,13 @@ mod tests {
         let f = Footprint::new(FootprintRing::from_points(ring.clone()), vec![]).unwrap();
         let mut points = ring.clone();
         points.extend([[2.0, 2.0], [8.0, 2.0]]);
-        let m = triangulate(&f, points, &[0..4], &[[4, 5], [0, 4], [3, 4], [1, 5], [2, 5]]);
+        let m = triangulate(
+            &f,
+            points,
+            &[0..4],
+            &[[4, 5], [0, 4], [3, 4], [1, 5], [2, 5]],
+            &[],
+        );
         assert!((area(&m) - 40.0).abs() < 1e-9);
         let has_edge = |a: u32, b: u32| {
             m.triangles
