@@ -79,7 +79,11 @@ fn expected_dlf(shape: RoofShape, [x, y]: [f64; 2]) -> f64 {
         RoofShape::Flat => 0.0,
         RoofShape::Gabled => y.abs(),
         RoofShape::Hipped => {
-            let dx = if x.abs() <= x_h { 0.0 } else { (x.abs() - x_h) / (1.0 - x_h) };
+            let dx = if x.abs() <= x_h {
+                0.0
+            } else {
+                (x.abs() - x_h) / (1.0 - x_h)
+            };
             dx.max(y.abs())
         }
         RoofShape::Pyramidal => x.abs().max(y.abs()),
@@ -88,12 +92,20 @@ fn expected_dlf(shape: RoofShape, [x, y]: [f64; 2]) -> f64 {
         RoofShape::HalfHipped => {
             let y_h = 1.0 - P;
             let x_hh = 1.0 - y_h * RY / RX;
-            let dx = if x.abs() <= x_hh { 0.0 } else { (x.abs() - x_hh) * RX / RY };
+            let dx = if x.abs() <= x_hh {
+                0.0
+            } else {
+                (x.abs() - x_hh) * RX / RY
+            };
             dx.max(y.abs())
         }
         RoofShape::Gambrel => g(P, y.abs()),
         RoofShape::Mansard => {
-            let dx = if x.abs() <= x_h { 0.0 } else { g(P, (x.abs() - x_h) / (1.0 - x_h)) };
+            let dx = if x.abs() <= x_h {
+                0.0
+            } else {
+                g(P, (x.abs() - x_h) / (1.0 - x_h))
+            };
             dx.max(g(P, y.abs()))
         }
     }
@@ -111,12 +123,33 @@ fn characteristic_points(shape: RoofShape) -> Vec<[f64; 2]> {
         RoofShape::HalfHipped => {
             let y_h = 1.0 - P;
             let x_hh = 1.0 - y_h * RY / RX;
-            vec![[-x_hh, 0.0], [x_hh, 0.0], [1.0, y_h], [1.0, -y_h], [-1.0, y_h], [-1.0, -y_h]]
+            vec![
+                [-x_hh, 0.0],
+                [x_hh, 0.0],
+                [1.0, y_h],
+                [1.0, -y_h],
+                [-1.0, y_h],
+                [-1.0, -y_h],
+            ]
         }
-        RoofShape::Gambrel => vec![[-1.0, 0.0], [1.0, 0.0], [1.0, P], [1.0, -P], [-1.0, P], [-1.0, -P]],
+        RoofShape::Gambrel => vec![
+            [-1.0, 0.0],
+            [1.0, 0.0],
+            [1.0, P],
+            [1.0, -P],
+            [-1.0, P],
+            [-1.0, -P],
+        ],
         RoofShape::Mansard => {
             let x_m = x_h + P * (1.0 - x_h);
-            vec![[-x_h, 0.0], [x_h, 0.0], [x_m, P], [x_m, -P], [-x_m, P], [-x_m, -P]]
+            vec![
+                [-x_h, 0.0],
+                [x_h, 0.0],
+                [x_m, P],
+                [x_m, -P],
+                [-x_m, P],
+                [-x_m, -P],
+            ]
         }
     };
     corners.into_iter().chain(extra).collect()
@@ -138,7 +171,10 @@ fn record(rect: &Rect, frame: &LocalFrame, shape: RoofShape) -> BuildingRecord {
         })
         .collect();
     // The skillion falls towards -y' (the compass direction of -v).
-    let direction = (-rect.v[0]).atan2(-rect.v[1]).to_degrees().rem_euclid(360.0);
+    let direction = (-rect.v[0])
+        .atan2(-rect.v[1])
+        .to_degrees()
+        .rem_euclid(360.0);
     let tags = [
         ("building", "house".to_owned()),
         ("height", TOP.to_string()),
@@ -164,7 +200,12 @@ fn scene(rect: &Rect, shape: RoofShape) -> (Scene, LocalFrame) {
     let (lon, lat) = bbox.center();
     let frame = LocalFrame::new(lon, lat, 0.0);
     let rec = record(rect, &frame, shape);
-    let scene = Scene::new(&ElevationModel::default(), &bbox, &[vec![&rec]], Border::Whole);
+    let scene = Scene::new(
+        &ElevationModel::default(),
+        &bbox,
+        &[vec![&rec]],
+        Border::Whole,
+    );
     assert_eq!(scene.frame, frame);
     (scene, frame)
 }
@@ -234,7 +275,12 @@ fn across_turns_the_ridge_of_a_gable() {
     let mut rec = record(&rect, &frame, RoofShape::Gabled);
     rec.tags
         .insert("roof:orientation".to_owned(), "across".to_owned());
-    let scene = Scene::new(&ElevationModel::default(), &bbox, &[vec![&rec]], Border::Whole);
+    let scene = Scene::new(
+        &ElevationModel::default(),
+        &bbox,
+        &[vec![&rec]],
+        Border::Whole,
+    );
     // The ridge now runs along y' at x' = 0; the roof falls over RX to the short walls.
     for p in roof_vertices(&scene.mesh) {
         let [x, _] = rect.alt([p[0], p[1]]);
@@ -247,7 +293,9 @@ fn roof_with(shape: RoofShape, parameter: Option<f64>) -> Vec<[i64; 3]> {
     let rect = Rect::new(30.0);
     let ring = FootprintRing::from_points(rect.corners());
     let footprint = Footprint::new(ring, vec![]).unwrap();
-    let axes = RoofAxes::of_ring(&footprint.outer.points).unwrap().long_first();
+    let axes = RoofAxes::of_ring(&footprint.outer.points)
+        .unwrap()
+        .long_first();
     let roof = RoofSurface::new(
         shape,
         axes,

@@ -65,7 +65,12 @@ fn cross(a: [f64; 2], b: [f64; 2]) -> f64 {
 
 /// Inserts `sigma` into a sorted list unless a point within [`MERGE_DISTANCE`] is there already.
 pub fn insert_split(list: &mut Vec<f64>, sigma: f64, edge_length: f64) {
-    let tol = MERGE_DISTANCE / edge_length.max(f64::MIN_POSITIVE);
+    insert_split_within(list, sigma, edge_length, MERGE_DISTANCE);
+}
+
+/// Inserts `sigma` into a sorted list unless a point within `distance` metres is there already.
+pub fn insert_split_within(list: &mut Vec<f64>, sigma: f64, edge_length: f64, distance: f64) {
+    let tol = distance / edge_length.max(f64::MIN_POSITIVE);
     if sigma <= tol || sigma >= 1.0 - tol {
         return;
     }

@@ -197,16 +197,16 @@ impl Footprint {
             if hole.signed_area() > 0.0 {
                 hole.reverse();
             }
-            let inside = hole.points.iter().all(|&p| strictly_inside(&outer.points, p));
+            let inside = hole
+                .points
+                .iter()
+                .all(|&p| strictly_inside(&outer.points, p));
             let crosses = |other: &FootprintRing| rings_touch(&hole, other);
             if inside && !crosses(&outer) && !kept.iter().any(crosses) {
                 kept.push(hole);
             }
         }
-        Ok(Self {
-            outer,
-            holes: kept,
-        })
+        Ok(Self { outer, holes: kept })
     }
 
     /// All rings: the outer first, then the courtyards.

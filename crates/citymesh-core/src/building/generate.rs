@@ -250,7 +250,11 @@ fn from_multipolygon(mp: MultiPolygon<f64>, sources: &[&Footprint]) -> Vec<Footp
     };
     mp.0.iter()
         .filter_map(|poly| {
-            let f = Footprint::new(ring(poly.exterior()), poly.interiors().iter().map(ring).collect()).ok()?;
+            let f = Footprint::new(
+                ring(poly.exterior()),
+                poly.interiors().iter().map(ring).collect(),
+            )
+            .ok()?;
             (f.area() >= MIN_PIECE_AREA).then_some(f)
         })
         .collect()
@@ -277,11 +281,7 @@ fn truncate(footprint: &Footprint, clip: &GeoBbox, frame: &LocalFrame) -> Vec<Fo
     if inside {
         return vec![footprint.clone()];
     }
-    let outside = footprint
-        .outer
-        .points
-        .iter()
-        .all(|p| p[0] < lo[0])
+    let outside = footprint.outer.points.iter().all(|p| p[0] < lo[0])
         || footprint.outer.points.iter().all(|p| p[0] > hi[0])
         || footprint.outer.points.iter().all(|p| p[1] < lo[1])
         || footprint.outer.points.iter().all(|p| p[1] > hi[1]);

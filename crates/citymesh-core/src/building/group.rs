@@ -6,14 +6,16 @@
 //!
 //! To keep every edge shared by exactly two triangles, both volumes put the same points on a
 //! shared edge (the union of the points where either roof bends there, plus where the two roofs
-//! cross), and every vertical wall side at a node is split at the floor and roof heights of all
+//! cross or pass the other's floor, so that between two points one rule holds), and every vertical wall side at a node is split at the floor and roof heights of all
 //! volumes meeting at that node.
 
-use super::boundary::{End, canonical, divide, edge_key, edge_length, edge_point, insert_split};
-use super::footprint::{Footprint, NodeKey};
+use super::boundary::{
+    End, canonical, divide, edge_key, edge_length, edge_point, insert_split, insert_split_within,
+};
+use super::footprint::{Footprint, MERGE_DISTANCE, NodeKey};
 use super::roof_surface::RoofSurface;
 use super::triangulate::triangulate;
-use super::walls::{WallEnd, push_wall_piece};
+use super::walls::{SAME_HEIGHT, WallEnd, push_wall_piece};
 use crate::mesh::{FaceStyle, Material, Mesh, Rgb};
 use std::collections::HashMap;
 
@@ -41,7 +43,7 @@ pub struct GroupReport {
     pub dropped_constraints: usize,
 }
 
-/// A shared edge as seen from one side: the other volume, ring and edge.
+/// A shared edge as seen from one side: the other volume.
 #[derive(Debug, Clone, Copy)]
 struct Partner {
     volume: usize,
@@ -93,40 +95,40 @@ pub fn mesh_group(volumes: &[Volume], roofs: &[RoofSurface], mesh: &mut Mesh) ->
             insert_split(&mut union, s, len);
         }
         let (roof_a, roof_b) = (&roofs[volumes[va].roof], &roofs[volumes[vb].roof]);
-        let diff = |s: f64| {
-            let p = edge_point(ring_a, ea, s);
-            roof_a.height_at(p) - roof_b.height_at(p)
-        };
-        let mut stops: Vec<f64> = std::iter::once(0.0)
-            .chain(union.iter().copied())
-            .chain(std::iter::once(1.0))
-            .collect();
-        let mut crossings = Vec::new();
-        for w in stops.windows(2) {
-            let (d0, d1) = (diff(w[0]), diff(w[1]));
-            if (d0 > 1e-9 && d1 < -1e-9) || (d0 < -1e-9 && d1 > 1e-9) {
-                crossings.push(w[0] + (w[1] - w[0]) * d0 / (d0 - d1));
+        let (floor_a, floor_b) = (volumes[va].floor, volumes[vb].floor);
+        // Where the two roofs cross, and where either roof passes the other's floor: between
+        // these points, which wall hides which stays the same.
+        let differences: [&dyn Fn([f64; 2]) -> f64; 3] = [
+            &|p| roof_a.height_at(p) - roof_b.height_at(p),
+            &|p| roof_a.height_at(p) - floor_b,
+            &|p| roof_b.height_at(p) - floor_a,
+        ];
+        for diff in differences {
+            let stops: Vec<f64> = std::iter::once(0.0)
+                .chain(union.iter().copied())
+                .chain(std::iter::once(1.0))
+                .collect();
+            let mut crossings = Vec::new();
+            for w in stops.windows(2) {
+                let d0 = diff(edge_point(ring_a, ea, w[0]));
+                let d1 = diff(edge_point(ring_a, ea, w[1]));
+                if (d0 > SAME_HEIGHT && d1 < -SAME_HEIGHT)
+                    || (d0 < -SAME_HEIGHT && d1 > SAME_HEIGHT)
+                {
+                    crossings.push(w[0] + (w[1] - w[0]) * d0 / (d0 - d1));
+                }
+            }
+            // Crossings go in however close to another point: skipping one would leave the
+            // two walls disagreeing by its slope over that distance.
+            for s in crossings {
+                insert_split_within(&mut union, s, len, SAME_HEIGHT);
             }
         }
-        for s in crossings {
-            insert_split(&mut union, s, len);
-        }
-        stops = std::iter::once(0.0)
-            .chain(union.iter().copied())
-            .chain(std::iter::once(1.0))
-            .collect();
-        let floor = volumes[va].floor.max(volumes[vb].floor);
-        let hides = stops.iter().all(|&s| {
-            let p = edge_point(ring_a, ea, s);
-            roof_a.height_at(p).min(roof_b.height_at(p)) > floor + 1e-6
-        });
         divisions[vb].splits[rb][eb] = union.clone();
         divisions[va].splits[ra][ea] = union;
-        if hides {
-            report.shared_edges += 1;
-            partner.insert((va, ra, ea), Partner { volume: vb });
-            partner.insert((vb, rb, eb), Partner { volume: va });
-        }
+        report.shared_edges += 1;
+        partner.insert((va, ra, ea), Partner { volume: vb });
+        partner.insert((vb, rb, eb), Partner { volume: va });
     }
 
     // Heights at which vertical wall sides end, per node.
@@ -226,9 +228,8 @@ fn mesh_volume(
     }
 
     // Constraints from the dividing segments.
-    let mut interior: HashMap<(u64, u64), usize> = HashMap::new();
     let mut constraints = Vec::with_capacity(div.constraints.len());
-    let mut resolve = |end: End, points: &mut Vec<[f64; 2]>| -> usize {
+    let resolve = |end: End, points: &mut Vec<[f64; 2]>| -> usize {
         match end {
             End::Node { ring, index } => node_index[ring][index],
             End::Edge { ring, edge, sigma } => {
@@ -249,10 +250,18 @@ fn mesh_volume(
                     None => node_index[ring][edge],
                 }
             }
-            End::Interior(p) => *interior.entry((p[0].to_bits(), p[1].to_bits())).or_insert_with(|| {
+            End::Interior(p) => {
+                // One point for ends closer than the merge distance (rounding leaves the same
+                // corner of two dividing segments a few ulps apart).
+                let near = |q: &[f64; 2]| {
+                    (q[0] - p[0]).abs() <= MERGE_DISTANCE && (q[1] - p[1]).abs() <= MERGE_DISTANCE
+                };
+                if let Some(i) = points.iter().position(near) {
+                    return i;
+                }
                 points.push(p);
                 points.len() - 1
-            }),
+            }
         }
     };
     for &[a, b] in &div.constraints {
@@ -262,7 +271,11 @@ fn mesh_volume(
         }
     }
 
-    let on_edge: Vec<bool> = ring_points.iter().flatten().map(|p| p.node.is_none()).collect();
+    let on_edge: Vec<bool> = ring_points
+        .iter()
+        .flatten()
+        .map(|p| p.node.is_none())
+        .collect();
     let planar = triangulate(&v.footprint, points, &ranges, &constraints, &on_edge);
     let roof_style = FaceStyle {
         material: Material::Roof,
@@ -307,32 +320,30 @@ fn mesh_volume(
                 top,
                 splits: splits(p),
             };
-            match partner.get(&(vi, r, a.edge)) {
-                None => push_wall_piece(
-                    mesh,
-                    end(&a, v.floor, ta),
-                    end(&b, v.floor, tb),
-                    wall_style,
-                ),
-                Some(other) => {
-                    let o = &volumes[other.volume];
+            match partner.get(&(vi, r, a.edge)).map(|p| &volumes[p.volume]) {
+                None => {
+                    push_wall_piece(mesh, end(&a, v.floor, ta), end(&b, v.floor, tb), wall_style)
+                }
+                Some(o) => {
+                    // Both walls stand between their floor and roof; the part both cover,
+                    // [low, high] at each end, is hidden. This one shows what is below the
+                    // other's floor and what is above the hidden part.
                     let oroof = &roofs[o.roof];
-                    if v.floor < o.floor {
+                    let low = v.floor.max(o.floor);
+                    let high = |at: [f64; 2], t: f64| low.max(t.min(oroof.height_at(at)));
+                    let (high_a, high_b) = (high(a.at, ta), high(b.at, tb));
+                    if v.floor < o.floor - SAME_HEIGHT {
                         push_wall_piece(
                             mesh,
-                            end(&a, v.floor, o.floor),
-                            end(&b, v.floor, o.floor),
+                            end(&a, v.floor, low.min(ta)),
+                            end(&b, v.floor, low.min(tb)),
                             wall_style,
                         );
                     }
-                    let (oa, ob) = (oroof.height_at(a.at), oroof.height_at(b.at));
-                    if ta > oa + 1e-9 || tb > ob + 1e-9 {
-                        push_wall_piece(
-                            mesh,
-                            end(&a, oa.min(ta), ta),
-                            end(&b, ob.min(tb), tb),
-                            wall_style,
-                        );
+                    let (base_a, base_b) =
+                        (high_a.max(v.floor).min(ta), high_b.max(v.floor).min(tb));
+                    if ta > base_a + SAME_HEIGHT || tb > base_b + SAME_HEIGHT {
+                        push_wall_piece(mesh, end(&a, base_a, ta), end(&b, base_b, tb), wall_style);
                     }
                 }
             }

@@ -127,7 +127,11 @@ impl BuildingParams {
             .unwrap_or(DEFAULT_WALL_COLOUR);
         let roof_colour = tags
             .roof_colour
-            .or_else(|| tags.roof_material.as_deref().and_then(roof_colour_for_material))
+            .or_else(|| {
+                tags.roof_material
+                    .as_deref()
+                    .and_then(roof_colour_for_material)
+            })
             .unwrap_or(if shape == RoofShape::Flat {
                 DEFAULT_FLAT_ROOF_COLOUR
             } else {
@@ -162,20 +166,50 @@ mod tests {
 
     #[test]
     fn heights_follow_the_fallback_chain() {
-        let p = params(&[("building", "house"), ("height", "12"), ("roof:height", "4"), ("roof:shape", "gabled")], 5.0);
+        let p = params(
+            &[
+                ("building", "house"),
+                ("height", "12"),
+                ("roof:height", "4"),
+                ("roof:shape", "gabled"),
+            ],
+            5.0,
+        );
         assert_eq!((p.height, p.roof_height), (12.0, 4.0));
         assert_eq!(p.height_source, HeightSource::Tag);
         // Levels: 3 x 3 m plus the roof from its angle (45 degrees over a 5 m run).
-        let p = params(&[("building", "house"), ("building:levels", "3"), ("roof:angle", "45"), ("roof:shape", "hipped")], 5.0);
+        let p = params(
+            &[
+                ("building", "house"),
+                ("building:levels", "3"),
+                ("roof:angle", "45"),
+                ("roof:shape", "hipped"),
+            ],
+            5.0,
+        );
         assert!((p.roof_height - 5.0).abs() < 1e-12);
         assert!((p.height - 14.0).abs() < 1e-12);
         assert_eq!(p.roof_height_source, RoofHeightSource::Angle);
         // Nothing: a house has 2 levels, a flat roof has no height.
         let p = params(&[("building", "house")], 5.0);
-        assert_eq!((p.height, p.roof_height, p.shape), (6.0, 0.0, RoofShape::Flat));
-        assert_eq!((p.shape_source, p.height_source), (ShapeSource::Default, HeightSource::TypeDefault));
+        assert_eq!(
+            (p.height, p.roof_height, p.shape),
+            (6.0, 0.0, RoofShape::Flat)
+        );
+        assert_eq!(
+            (p.shape_source, p.height_source),
+            (ShapeSource::Default, HeightSource::TypeDefault)
+        );
         // roof:levels, and the default pitch.
-        let p = params(&[("building", "yes"), ("roof:levels", "1"), ("roof:shape", "gabled"), ("building:levels", "2")], 5.0);
+        let p = params(
+            &[
+                ("building", "yes"),
+                ("roof:levels", "1"),
+                ("roof:shape", "gabled"),
+                ("building:levels", "2"),
+            ],
+            5.0,
+        );
         assert_eq!((p.roof_height, p.height), (3.0, 9.0));
         let p = params(&[("building", "garage"), ("roof:shape", "skillion")], 2.0);
         assert!((p.roof_height - 2.0 * 30f64.to_radians().tan()).abs() < 1e-12);
@@ -183,19 +217,54 @@ mod tests {
 
     #[test]
     fn roofs_leave_room_for_walls_and_odd_shapes_render_flat() {
-        let p = params(&[("building", "yes"), ("height", "4"), ("roof:height", "9"), ("roof:shape", "gabled")], 5.0);
+        let p = params(
+            &[
+                ("building", "yes"),
+                ("height", "4"),
+                ("roof:height", "9"),
+                ("roof:shape", "gabled"),
+            ],
+            5.0,
+        );
         assert_eq!(p.roof_height, 4.0 - MIN_WALL_HEIGHT);
-        let p = params(&[("building", "yes"), ("roof:shape", "quadruple_saltbox")], 5.0);
-        assert_eq!((p.shape, p.shape_source), (RoofShape::Flat, ShapeSource::Unsupported));
-        let p = params(&[("building:part", "yes"), ("height", "20"), ("min_height", "12")], 5.0);
+        let p = params(
+            &[("building", "yes"), ("roof:shape", "quadruple_saltbox")],
+            5.0,
+        );
+        assert_eq!(
+            (p.shape, p.shape_source),
+            (RoofShape::Flat, ShapeSource::Unsupported)
+        );
+        let p = params(
+            &[
+                ("building:part", "yes"),
+                ("height", "20"),
+                ("min_height", "12"),
+            ],
+            5.0,
+        );
         assert_eq!((p.min_height, p.height), (12.0, 20.0));
-        let p = params(&[("building", "yes"), ("building:levels", "4"), ("building:min_level", "1")], 5.0);
+        let p = params(
+            &[
+                ("building", "yes"),
+                ("building:levels", "4"),
+                ("building:min_level", "1"),
+            ],
+            5.0,
+        );
         assert_eq!((p.min_height, p.height), (3.0, 12.0));
     }
 
     #[test]
     fn colours_from_tags_then_materials_then_defaults() {
-        let p = params(&[("building", "yes"), ("building:colour", "red"), ("roof:material", "slate")], 5.0);
+        let p = params(
+            &[
+                ("building", "yes"),
+                ("building:colour", "red"),
+                ("roof:material", "slate"),
+            ],
+            5.0,
+        );
         assert_eq!(p.wall_colour, Rgb(255, 0, 0));
         assert_eq!(p.roof_colour, Rgb(0x50, 0x58, 0x60));
         let p = params(&[("building", "yes"), ("building:material", "brick")], 5.0);

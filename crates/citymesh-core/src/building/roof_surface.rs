@@ -136,7 +136,11 @@ impl RoofSurface {
         let e = 1e-4;
         let n = [-d[1] / len * e, d[0] / len * e];
         let f = |a: Alt| self.model.dlf(a);
-        let (l, c, r) = (f([m[0] + n[0], m[1] + n[1]]), f(m), f([m[0] - n[0], m[1] - n[1]]));
+        let (l, c, r) = (
+            f([m[0] + n[0], m[1] + n[1]]),
+            f(m),
+            f([m[0] - n[0], m[1] - n[1]]),
+        );
         (l + r - 2.0 * c).abs() > 1e-9
     }
 }
@@ -160,7 +164,8 @@ fn join_collinear(segments: &mut Vec<[Alt; 2]>) {
                         .iter()
                         .filter(|s| s[0] == shared || s[1] == shared)
                         .count();
-                    let cross = (shared[0] - x[0]) * (y[1] - x[1]) - (shared[1] - x[1]) * (y[0] - x[0]);
+                    let cross =
+                        (shared[0] - x[0]) * (y[1] - x[1]) - (shared[1] - x[1]) * (y[0] - x[0]);
                     if degree == 2 && cross.abs() < 1e-12 {
                         segments[i] = [x, y];
                         segments.swap_remove(j);

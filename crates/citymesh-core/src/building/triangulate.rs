@@ -74,7 +74,9 @@ pub fn triangulate(
                 }
             }
             for [a, b] in &edges {
-                if handles[*a] != handles[*b] && cdt.try_add_constraint(handles[*a], handles[*b]).is_empty() {
+                if handles[*a] != handles[*b]
+                    && cdt.try_add_constraint(handles[*a], handles[*b]).is_empty()
+                {
                     dropped += 1;
                 }
             }
@@ -222,7 +224,11 @@ fn open_chords(triangles: &mut Vec<[u32; 3]>, rings: &[std::ops::Range<usize>], 
         }
         let mut replaced = false;
         for k in 0..3 {
-            let (a, b, w) = (t[k] as usize, t[(k + 1) % 3] as usize, t[(k + 2) % 3] as usize);
+            let (a, b, w) = (
+                t[k] as usize,
+                t[(k + 1) % 3] as usize,
+                t[(k + 2) % 3] as usize,
+            );
             if let Some(c) = chain(a, b) {
                 if !c.contains(&w) {
                     for pair in c.windows(2) {

@@ -14,8 +14,8 @@ pub struct WallEnd<'a> {
     pub splits: &'a [f64],
 }
 
-/// Heights closer than this are one.
-const SAME_HEIGHT: f64 = 1e-9;
+/// Heights closer than this (metres) are one: wall pieces never get slivers thinner than this.
+pub const SAME_HEIGHT: f64 = 1e-6;
 
 /// Adds the wall piece from `u` to `v` (the outside is on the right of `u` -> `v`), counter-clockwise
 /// seen from outside.
@@ -130,12 +130,20 @@ mod tests {
     #[test]
     fn a_plain_wall_is_two_triangles_facing_out() {
         let mut m = Mesh::default();
-        push_wall_piece(&mut m, end([0.0, 0.0], 0.0, 3.0, &[]), end([4.0, 0.0], 0.0, 5.0, &[]), STYLE);
+        push_wall_piece(
+            &mut m,
+            end([0.0, 0.0], 0.0, 3.0, &[]),
+            end([4.0, 0.0], 0.0, 5.0, &[]),
+            STYLE,
+        );
         assert_eq!(m.triangles.len(), 2);
         // Outside is to the right of east-going u -> v: the south, so normals point to -y.
         for t in &m.triangles {
             let [a, b, c] = m.corners(*t);
-            let (u, w) = ([b[0] - a[0], b[1] - a[1], b[2] - a[2]], [c[0] - a[0], c[1] - a[1], c[2] - a[2]]);
+            let (u, w) = (
+                [b[0] - a[0], b[1] - a[1], b[2] - a[2]],
+                [c[0] - a[0], c[1] - a[1], c[2] - a[2]],
+            );
             let ny = u[2] * w[0] - u[0] * w[2];
             assert!(ny < 0.0);
         }
@@ -158,7 +166,12 @@ mod tests {
     #[test]
     fn a_piece_that_closes_to_a_point_is_a_triangle() {
         let mut m = Mesh::default();
-        push_wall_piece(&mut m, end([0.0, 0.0], 5.0, 5.0, &[]), end([4.0, 0.0], 3.0, 7.0, &[]), STYLE);
+        push_wall_piece(
+            &mut m,
+            end([0.0, 0.0], 5.0, 5.0, &[]),
+            end([4.0, 0.0], 3.0, 7.0, &[]),
+            STYLE,
+        );
         assert_eq!(m.triangles.len(), 1);
     }
 }

@@ -97,7 +97,12 @@ mod tests {
 
     fn tetra(flip: bool) -> Mesh {
         let mut m = Mesh::default();
-        for p in [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]] {
+        for p in [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ] {
             m.push_vertex(p);
         }
         let style = FaceStyle {

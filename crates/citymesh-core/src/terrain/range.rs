@@ -27,8 +27,12 @@ impl ElevationModel {
             }
             let (u0, v0, u1, v1) = (a.0 * p, a.1 * p, b.0 * p, b.1 * p);
             // Each family of mesh lines as a linear function of (u, v) and its offset.
-            let families: [(f64, f64, f64); 4] =
-                [(1.0, 0.0, 0.5), (0.0, 1.0, 0.5), (1.0, -1.0, 0.0), (1.0, 1.0, 0.0)];
+            let families: [(f64, f64, f64); 4] = [
+                (1.0, 0.0, 0.5),
+                (0.0, 1.0, 0.5),
+                (1.0, -1.0, 0.0),
+                (1.0, 1.0, 0.0),
+            ];
             for (cu, cv, offset) in families {
                 let f0 = cu * u0 + cv * v0 - offset;
                 let f1 = cu * u1 + cv * v1 - offset;

@@ -42,5 +42,6 @@ mod tests {
     fn is_a_valid_model() {
         super::super::tests::check_model(&super::Hipped::new(10.0, 4.0));
         super::super::tests::check_model(&super::Hipped::new(5.0, 5.0));
+        super::super::tests::check_model(&super::Hipped::new(4.0, 10.0));
     }
 }

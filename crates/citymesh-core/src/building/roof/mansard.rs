@@ -57,5 +57,6 @@ mod tests {
             super::super::tests::check_model(&super::Mansard::new(10.0, 4.0, mp));
         }
         super::super::tests::check_model(&super::Mansard::new(4.0, 4.0, 0.7));
+        super::super::tests::check_model(&super::Mansard::new(4.0, 10.0, 0.7));
     }
 }
