@@ -242,7 +242,7 @@ proptest! {
         let refs: Vec<&BuildingRecord> = records.iter().collect();
         let scene = Scene::new(&ElevationModel::default(), &bbox(), &[refs], Border::Whole);
         prop_assert_eq!(scene.buildings.generated, widths.len());
-        prop_assert!(scene.buildings.shared_walls <= widths.len() - 1);
+        prop_assert!(scene.buildings.shared_walls < widths.len());
         let report = check_closed(&scene.mesh, scene.cluster_triangles[0].clone());
         prop_assert!(report.is_closed_and_outward(), "{report:?}");
     }

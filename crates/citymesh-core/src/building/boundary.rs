@@ -183,8 +183,8 @@ mod tests {
         assert_eq!(d.constraints.len(), 1);
         let [a, b] = d.constraints[0];
         let p = |e: End| match e {
-            End::Edge { ring, edge, sigma } => edge_point(&f.outer, edge, sigma),
-            other => panic!("{other:?} {ring}", ring = 0),
+            End::Edge { edge, sigma, .. } => edge_point(&f.outer, edge, sigma),
+            other => panic!("expected a point on an edge, got {other:?}"),
         };
         let (pa, pb) = (p(a), p(b));
         assert!((pa[1] - 2.0).abs() < 1e-12 && (pb[1] - 2.0).abs() < 1e-12);

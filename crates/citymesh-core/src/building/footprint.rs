@@ -97,9 +97,9 @@ impl FootprintRing {
         }
         let mut keep = vec![true; n];
         let mut last = 0;
-        for i in 1..n {
+        for (i, k) in keep.iter_mut().enumerate().skip(1) {
             if close(self.points[i], self.points[last]) {
-                keep[i] = false;
+                *k = false;
             } else {
                 last = i;
             }

@@ -43,6 +43,9 @@ pub struct GroupReport {
     pub dropped_constraints: usize,
 }
 
+/// An edge of a volume: (volume, ring, edge).
+type EdgeRef = (usize, usize, usize);
+
 /// A shared edge as seen from one side: the other volume.
 #[derive(Debug, Clone, Copy)]
 struct Partner {
@@ -59,7 +62,7 @@ pub fn mesh_group(volumes: &[Volume], roofs: &[RoofSurface], mesh: &mut Mesh) ->
         .collect();
 
     // Edges that appear in two volumes, in opposite directions.
-    let mut by_key: HashMap<(NodeKey, NodeKey), Vec<(usize, usize, usize)>> = HashMap::new();
+    let mut by_key: HashMap<(NodeKey, NodeKey), Vec<EdgeRef>> = HashMap::new();
     if volumes.len() > 1 {
         for (vi, v) in volumes.iter().enumerate() {
             for (r, ring) in v.footprint.rings().enumerate() {

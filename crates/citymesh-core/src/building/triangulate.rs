@@ -31,8 +31,12 @@ pub fn triangulate(
     constraints: &[[usize; 2]],
     on_edge: &[bool],
 ) -> PlanarMesh {
-    if rings.len() == 1 && constraints.is_empty() && points.len() == rings[0].len() {
-        if let Some(triangles) = convex_fan(&mut points, on_edge) {
+    if rings.len() == 1
+        && constraints.is_empty()
+        && points.len() == rings[0].len()
+        && let Some(triangles) = convex_fan(&mut points, on_edge)
+    {
+        {
             return PlanarMesh {
                 points,
                 triangles,
@@ -327,7 +331,7 @@ mod tests {
     fn a_convex_ring_with_a_straight_point_fans_from_its_centre() {
         let ring = vec![[0.0, 0.0], [5.0, 0.0], [10.0, 0.0], [10.0, 4.0], [0.0, 4.0]];
         let f = Footprint::new(FootprintRing::from_points(ring.clone()), vec![]).unwrap();
-        let m = triangulate(&f, ring, &[0..5], &[], &[]);
+        let m = triangulate(&f, ring, std::slice::from_ref(&(0..5)), &[], &[]);
         assert_eq!(m.points.len(), 6);
         assert_eq!(m.triangles.len(), 5);
         assert!(m.triangles.iter().all(|t| {
@@ -346,7 +350,7 @@ mod tests {
         let m = triangulate(
             &f,
             points,
-            &[0..4],
+            std::slice::from_ref(&(0..4)),
             &[[4, 5], [0, 4], [3, 4], [1, 5], [2, 5]],
             &[],
         );

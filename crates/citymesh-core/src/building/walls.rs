@@ -24,10 +24,11 @@ pub fn push_wall_piece(mesh: &mut Mesh, u: WallEnd, v: WallEnd, style: FaceStyle
     let len = (v.at[0] - u.at[0]).hypot(v.at[1] - u.at[1]);
     let mut poly: Vec<(f64, f64, [f64; 3])> = Vec::with_capacity(8);
     let mut push = |w: f64, z: f64, at: [f64; 2]| {
-        if let Some(last) = poly.last() {
-            if last.0 == w && (last.1 - z).abs() <= SAME_HEIGHT {
-                return;
-            }
+        if let Some(last) = poly.last()
+            && last.0 == w
+            && (last.1 - z).abs() <= SAME_HEIGHT
+        {
+            return;
         }
         poly.push((w, z, [at[0], at[1], z]));
     };

@@ -1,0 +1,334 @@
+//! Every building of the real files in `../shared/data/osm` through the generator: exact counts,
+//! every volume closed and outward, true scale, nothing floating above the terrain, and the PBF
+//! and Overpass JSON of one area giving the very same mesh.
+
+mod common;
+
+use citymesh_core::building::clusters;
+use citymesh_core::geo::{GeoBbox, LocalFrame};
+use citymesh_core::mesh::check_closed;
+use citymesh_core::osm::{BuildingRecord, OsmBuildings, read_buildings};
+use citymesh_core::scene::{Border, Scene};
+use citymesh_core::terrain::ElevationModel;
+use rstest::rstest;
+use std::collections::BTreeMap;
+use std::io::Read;
+
+fn bytes(name: &str) -> Vec<u8> {
+    let path = common::data_dir().join("osm").join(name);
+    let b = std::fs::read(&path).unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
+    if !name.ends_with(".gz") {
+        return b;
+    }
+    let mut out = Vec::new();
+    flate2::read::GzDecoder::new(&b[..])
+        .read_to_end(&mut out)
+        .unwrap();
+    out
+}
+
+/// The buildings' own extent (the files' bboxes reach far out, see the data README).
+fn extent(b: &OsmBuildings) -> GeoBbox {
+    let mut e = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
+    for n in b
+        .buildings
+        .iter()
+        .flat_map(|r| &r.outers)
+        .flat_map(|r| &r.nodes)
+    {
+        e = [
+            e[0].min(n.lon),
+            e[1].min(n.lat),
+            e[2].max(n.lon),
+            e[3].max(n.lat),
+        ];
+    }
+    GeoBbox::new(e[0], e[1], e[2], e[3]).unwrap()
+}
+
+fn dem_for(file: &str) -> ElevationModel {
+    match file {
+        f if f.starts_with("karlsruhe") || f.starts_with("tram") => common::model(&["N49E008.hgt"]),
+        f if f.starts_with("nuremberg") => common::model(&["N49E011.hgt"]),
+        _ => ElevationModel::default(),
+    }
+}
+
+fn whole_scene(file: &str) -> (OsmBuildings, Scene) {
+    let b = read_buildings(&bytes(file)).unwrap();
+    let groups: Vec<Vec<&BuildingRecord>> = clusters(&b.buildings)
+        .iter()
+        .map(|c| c.iter().map(|&i| &b.buildings[i]).collect())
+        .collect();
+    let scene = Scene::new(&dem_for(file), &extent(&b), &groups, Border::Whole);
+    (b, scene)
+}
+
+/// Counts of each known `roof:shape` value among records, straight from the tags.
+fn shape_tags(b: &OsmBuildings) -> BTreeMap<String, usize> {
+    let mut out = BTreeMap::new();
+    for r in &b.buildings {
+        if let Some(s) = r.tags.get("roof:shape") {
+            *out.entry(s.clone()).or_default() += 1;
+        }
+    }
+    out
+}
+
+/// Per file: records generated, of which parts; outlines left empty by their parts; roofs per
+/// shape. Nothing in these files is a data fault, so nothing is skipped.
+#[rstest]
+#[case::kirchfeld("karlsruhe-kirchfeld.osm.pbf", 3020, 31, 6, &[("flat", 2729), ("gabled", 271), ("gambrel", 1), ("hipped", 5), ("pyramidal", 3), ("skillion", 11)])]
+#[case::kirchfeld_json("karlsruhe-kirchfeld.overpass.json", 3020, 31, 6, &[("flat", 2729), ("gabled", 271), ("gambrel", 1), ("hipped", 5), ("pyramidal", 3), ("skillion", 11)])]
+#[case::kit_nord("karlsruhe-kit-nord.osm.pbf", 595, 76, 7, &[("flat", 564), ("gabled", 19), ("skillion", 12)])]
+#[case::tram("tram-junction.osm.pbf", 277, 15, 3, &[("flat", 230), ("gabled", 29), ("gambrel", 2), ("hipped", 14), ("mansard", 2)])]
+#[case::nuremberg("nuremberg-laufamholz.osm", 118, 0, 0, &[("flat", 108), ("gabled", 10)])]
+#[case::san_francisco("san-francisco.overpass.json.gz", 617, 0, 0, &[("flat", 617)])]
+fn every_building_is_generated_closed_and_outward(
+    #[case] file: &str,
+    #[case] generated: usize,
+    #[case] parts: usize,
+    #[case] covered: usize,
+    #[case] shapes: &[(&str, usize)],
+) {
+    let (b, scene) = whole_scene(file);
+    let s = &scene.buildings;
+    assert_eq!(s.skipped, BTreeMap::new(), "{:?}", s.skipped_ids);
+    assert_eq!(
+        (s.generated, s.parts, s.outlines_covered_by_parts),
+        (generated, parts, covered)
+    );
+    // Every record is generated, or is an outline whose parts cover it.
+    assert_eq!(s.generated + s.outlines_covered_by_parts, b.buildings.len());
+    let expected: BTreeMap<&str, usize> = shapes.iter().copied().collect();
+    assert_eq!(s.roof_shapes, expected);
+    // Roof shapes from tags: exactly the generated records whose roof:shape is one of the eight.
+    let tags = shape_tags(&b);
+    let known: usize = tags
+        .iter()
+        .filter(|(k, _)| citymesh_core::building::roof::RoofShape::from_tag(k).is_some())
+        .map(|(_, v)| v)
+        .sum();
+    let unsupported: usize = tags.values().sum::<usize>() - known;
+    assert!(s.shape_from_tag <= known && known - s.shape_from_tag <= covered);
+    assert!(s.shape_unsupported <= unsupported);
+    assert_eq!(
+        s.shape_from_tag + s.shape_default + s.shape_unsupported,
+        s.generated
+    );
+    for (i, range) in scene.cluster_triangles.iter().enumerate() {
+        let r = check_closed(&scene.mesh, range.clone());
+        assert!(
+            r.triangles > 0 && r.open_edges == 0 && r.degenerate == 0 && r.volume > 0.0,
+            "{file}: cluster {i} is not closed and outward: {r:?}"
+        );
+    }
+}
+
+#[test]
+fn kirchfeld_roof_tags_match_the_data_readme() {
+    // The data README: 577 roof:shape tags on buildings (flat 294, gabled 270, hipped 5,
+    // pyramidal 3, skillion 3, gambrel 1, quadruple_saltbox 1).
+    let b = read_buildings(&bytes("karlsruhe-kirchfeld.osm.pbf")).unwrap();
+    let mut on_buildings: BTreeMap<&str, usize> = BTreeMap::new();
+    for r in b.buildings.iter().filter(|r| !r.is_part) {
+        if let Some(s) = r.tags.get("roof:shape") {
+            *on_buildings.entry(s.as_str()).or_default() += 1;
+        }
+    }
+    let expected: BTreeMap<&str, usize> = [
+        ("flat", 294),
+        ("gabled", 270),
+        ("hipped", 5),
+        ("pyramidal", 3),
+        ("skillion", 3),
+        ("gambrel", 1),
+        ("quadruple_saltbox", 1),
+    ]
+    .into_iter()
+    .collect();
+    assert_eq!(on_buildings, expected);
+    // The quadruple_saltbox renders flat and is counted as unsupported.
+    let (_, scene) = whole_scene("karlsruhe-kirchfeld.osm.pbf");
+    assert_eq!(scene.buildings.shape_unsupported, 1);
+}
+
+#[test]
+fn pbf_and_overpass_json_give_the_same_mesh() {
+    // The same area and frame for both; PBF stores 100-nanodegree integers and the JSON decimals,
+    // so positions agree to well under a millimetre rather than bit for bit.
+    let pbf = read_buildings(&bytes("karlsruhe-kirchfeld.osm.pbf")).unwrap();
+    let json = read_buildings(&bytes("karlsruhe-kirchfeld.overpass.json")).unwrap();
+    let bbox = extent(&pbf);
+    let model = dem_for("karlsruhe");
+    let scene = |b: &OsmBuildings| {
+        let groups: Vec<Vec<&BuildingRecord>> = clusters(&b.buildings)
+            .iter()
+            .map(|c| c.iter().map(|&i| &b.buildings[i]).collect())
+            .collect();
+        Scene::new(&model, &bbox, &groups, Border::Whole)
+    };
+    let (a, b) = (scene(&pbf), scene(&json));
+    assert_eq!(a.buildings, b.buildings);
+    assert_eq!(a.mesh.triangles.len(), b.mesh.triangles.len());
+    // The same corners (to a millimetre) and the same area per material: the triangulations of
+    // co-circular points may pick other diagonals.
+    let corners = |s: &Scene| -> std::collections::HashSet<[i64; 3]> {
+        s.mesh
+            .positions
+            .iter()
+            .map(|p| p.map(|c| (c * 1e3).round() as i64))
+            .collect()
+    };
+    let (ca, cb) = (corners(&a), corners(&b));
+    assert_eq!(ca.len(), cb.len());
+    let near = |k: &[i64; 3]| {
+        (-1..=1).any(|i| {
+            (-1..=1).any(|j| (-1..=1).any(|l| cb.contains(&[k[0] + i, k[1] + j, k[2] + l])))
+        })
+    };
+    assert!(ca.iter().all(near), "the meshes have other corners");
+    let areas = |s: &Scene| {
+        let mut out = [0.0f64; 4];
+        for (t, style) in s.mesh.triangles.iter().zip(&s.mesh.styles) {
+            let [p, q, r] = s.mesh.corners(*t);
+            let (u, w) = (
+                [q[0] - p[0], q[1] - p[1], q[2] - p[2]],
+                [r[0] - p[0], r[1] - p[1], r[2] - p[2]],
+            );
+            let n = [
+                u[1] * w[2] - u[2] * w[1],
+                u[2] * w[0] - u[0] * w[2],
+                u[0] * w[1] - u[1] * w[0],
+            ];
+            out[style.material as usize] += (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt() / 2.0;
+        }
+        out
+    };
+    let (x, y) = (areas(&a), areas(&b));
+    for k in 0..4 {
+        assert!(
+            (x[k] - y[k]).abs() <= 1e-6 * x[k].max(1.0),
+            "{x:?} vs {y:?}"
+        );
+    }
+}
+
+#[test]
+fn walls_have_true_length() {
+    use geographiclib_rs::{Geodesic, InverseGeodesic};
+    let geod = Geodesic::wgs84();
+    let (b, scene) = whole_scene("karlsruhe-kirchfeld.osm.pbf");
+    let frame: &LocalFrame = &scene.frame;
+    // Every wall vertex position of the mesh, to find each OSM node's corner in it.
+    let mut corners = std::collections::HashSet::new();
+    for (t, s) in scene.mesh.triangles.iter().zip(&scene.mesh.styles) {
+        if s.material == citymesh_core::mesh::Material::Wall {
+            for p in scene.mesh.corners(*t) {
+                corners.insert([p[0].to_bits(), p[1].to_bits()]);
+            }
+        }
+    }
+    let mut checked = 0;
+    for r in b.buildings.iter().filter(|r| !r.is_part) {
+        let ring = &r.outers[0].nodes;
+        for i in 0..ring.len() {
+            let (p, q) = (ring[i], ring[(i + 1) % ring.len()]);
+            let (a, c) = (
+                frame.to_local(p.lon, p.lat, 0.0),
+                frame.to_local(q.lon, q.lat, 0.0),
+            );
+            if !corners.contains(&[a[0].to_bits(), a[1].to_bits()])
+                || !corners.contains(&[c[0].to_bits(), c[1].to_bits()])
+            {
+                continue;
+            }
+            let length = (c[0] - a[0]).hypot(c[1] - a[1]);
+            let s12: f64 = geod.inverse(p.lat, p.lon, q.lat, q.lon);
+            if s12 < 1.0 {
+                continue;
+            }
+            assert!(
+                (length / s12 - 1.0).abs() < 0.005,
+                "{}: wall {length} m, geodesic {s12} m",
+                r.id
+            );
+            checked += 1;
+        }
+    }
+    // Walls hidden between neighbours are not in the mesh; all others are.
+    assert!(checked > 10_000, "only {checked} walls checked");
+}
+
+#[test]
+fn no_building_floats_above_the_ground() {
+    let (b, scene) = whole_scene("karlsruhe-kirchfeld.osm.pbf");
+    let model = dem_for("karlsruhe-kirchfeld.osm.pbf");
+    // The lowest mesh vertex at each footprint corner is the floor there.
+    let mut lowest: std::collections::HashMap<[u64; 2], f64> = std::collections::HashMap::new();
+    for p in &scene.mesh.positions {
+        let e = lowest
+            .entry([p[0].to_bits(), p[1].to_bits()])
+            .or_insert(f64::MAX);
+        *e = e.min(p[2]);
+    }
+    // Parts lifted by min_height stand above the ground on purpose; so do the nodes they share.
+    let lifted: std::collections::HashSet<Option<i64>> = b
+        .buildings
+        .iter()
+        .filter(|r| r.tags.contains_key("min_height") || r.tags.contains_key("building:min_level"))
+        .flat_map(|r| r.outers.iter().flat_map(|o| o.nodes.iter().map(|n| n.id)))
+        .collect();
+    let mut checked = 0;
+    for r in &b.buildings {
+        for n in r.outers.iter().flat_map(|r| &r.nodes) {
+            if lifted.contains(&n.id) {
+                continue;
+            }
+            let p = scene.frame.to_local(n.lon, n.lat, 0.0);
+            let Some(floor) = lowest.get(&[p[0].to_bits(), p[1].to_bits()]) else {
+                continue;
+            };
+            let ground = model.ground_height(n.lon, n.lat);
+            assert!(
+                *floor <= ground + 1e-9,
+                "{} floats: floor {floor}, ground {ground}",
+                r.id
+            );
+            checked += 1;
+        }
+    }
+    assert!(checked > 15_000, "only {checked} corners checked");
+}
+
+#[test]
+fn a_scene_box_truncates_buildings_at_its_border() {
+    let b = read_buildings(&bytes("karlsruhe-kirchfeld.osm.pbf")).unwrap();
+    let groups: Vec<Vec<&BuildingRecord>> = clusters(&b.buildings)
+        .iter()
+        .map(|c| c.iter().map(|&i| &b.buildings[i]).collect())
+        .collect();
+    let bbox = GeoBbox::new(8.39, 49.045, 8.40, 49.05).unwrap();
+    let scene = Scene::new(&dem_for("karlsruhe"), &bbox, &groups, Border::Truncate);
+    let lo = scene.frame.to_local(bbox.min_lon(), bbox.min_lat(), 0.0);
+    let hi = scene.frame.to_local(bbox.max_lon(), bbox.max_lat(), 0.0);
+    for p in &scene.mesh.positions {
+        assert!(
+            p[0] >= lo[0] - 1e-6
+                && p[0] <= hi[0] + 1e-6
+                && p[1] >= lo[1] - 1e-6
+                && p[1] <= hi[1] + 1e-6
+        );
+    }
+    assert!(scene.buildings.generated > 100);
+    for range in &scene.cluster_triangles {
+        if range.is_empty() {
+            continue;
+        }
+        let r = check_closed(&scene.mesh, range.clone());
+        assert!(
+            r.open_edges == 0 && r.degenerate == 0 && r.volume > 0.0,
+            "{r:?}"
+        );
+    }
+}
