@@ -1,0 +1,92 @@
+//! The whole Karlsruhe-Kirchfeld scene (2,995 buildings and 31 parts on the SRTM ground of their
+//! extent), from parsed OSM records to GLB bytes, and the OSM parsing before it.
+//! Reads `osm/karlsruhe-kirchfeld.osm.pbf` and `dem/N49E008.hgt` from `CITYMESH_DATA_DIR`
+//! (default `../shared/data`).
+
+use citymesh_core::building::clusters;
+use citymesh_core::geo::GeoBbox;
+use citymesh_core::osm::{BuildingRecord, read_buildings};
+use citymesh_core::scene::{Border, Scene};
+use citymesh_core::terrain::{ElevationModel, HgtTile};
+use criterion::{Criterion, criterion_group, criterion_main};
+use std::hint::black_box;
+use std::path::PathBuf;
+use std::sync::Arc;
+
+fn read(name: &str) -> Vec<u8> {
+    let dir = std::env::var_os("CITYMESH_DATA_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"));
+    let path = dir.join(name);
+    std::fs::read(&path)
+        .unwrap_or_else(|e| panic!("{}: {e} (set CITYMESH_DATA_DIR)", path.display()))
+}
+
+fn kirchfeld(c: &mut Criterion) {
+    let model = ElevationModel::new(vec![Arc::new(
+        HgtTile::from_bytes(49, 8, &read("dem/N49E008.hgt")).unwrap(),
+    )]);
+    let pbf = read("osm/karlsruhe-kirchfeld.osm.pbf");
+    let osm = read_buildings(&pbf).unwrap();
+    let groups: Vec<Vec<&BuildingRecord>> = clusters(&osm.buildings)
+        .iter()
+        .map(|c| c.iter().map(|&i| &osm.buildings[i]).collect())
+        .collect();
+    // The buildings' own extent.
+    let mut e = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
+    for n in osm
+        .buildings
+        .iter()
+        .flat_map(|r| &r.outers)
+        .flat_map(|r| &r.nodes)
+    {
+        e = [
+            e[0].min(n.lon),
+            e[1].min(n.lat),
+            e[2].max(n.lon),
+            e[3].max(n.lat),
+        ];
+    }
+    let bbox = GeoBbox::new(e[0], e[1], e[2], e[3]).unwrap();
+
+    let scene = Scene::new(&model, &bbox, &groups, Border::Whole);
+    let glb = scene.to_glb();
+    eprintln!(
+        "kirchfeld scene: {} buildings generated, {} vertices, {} triangles (mesh); GLB {} bytes",
+        scene.buildings.generated,
+        scene.mesh.positions.len(),
+        scene.mesh.triangles.len(),
+        glb.len()
+    );
+
+    c.bench_function("kirchfeld_scene_to_glb", |b| {
+        b.iter(|| {
+            Scene::new(
+                black_box(&model),
+                black_box(&bbox),
+                black_box(&groups),
+                Border::Whole,
+            )
+            .to_glb()
+        })
+    });
+    c.bench_function("kirchfeld_scene_mesh_only", |b| {
+        b.iter(|| {
+            Scene::new(
+                black_box(&model),
+                black_box(&bbox),
+                black_box(&groups),
+                Border::Whole,
+            )
+        })
+    });
+    c.bench_function("kirchfeld_pbf_parse_and_cluster", |b| {
+        b.iter(|| {
+            let osm = read_buildings(black_box(&pbf)).unwrap();
+            clusters(&osm.buildings).len()
+        })
+    });
+}
+
+criterion_group!(benches, kirchfeld);
+criterion_main!(benches);
