@@ -47,6 +47,11 @@ pub struct ServeArgs {
     )]
     pub cache_db: String,
 
+    /// OSM data to serve buildings from: OSM PBF, OSM XML or Overpass JSON, optionally gzipped.
+    /// Repeat the flag (or separate files with commas in CITYMESH_OSM) for several files.
+    #[arg(long = "osm", env = "CITYMESH_OSM", value_delimiter = ',')]
+    pub osm: Vec<PathBuf>,
+
     /// Log filter: error, warn, info, debug, trace, or a tracing directive like `citymesh=debug`.
     #[arg(long, env = "CITYMESH_LOG_LEVEL", default_value = "info")]
     pub log_level: String,

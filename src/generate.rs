@@ -1,13 +1,27 @@
-//! The bridge from a request to the core generator: gathers the data an area needs, runs the
-//! generator on the blocking pool, and returns the GLB with the figures that describe it.
+//! The bridge from a request to the core generator: gathers the data an area needs (DEM files,
+//! the clusters of buildings), runs the generator on the blocking pool, and returns the GLB with
+//! the figures that describe it.
 
 use crate::error::AppError;
 use crate::state::AppState;
 use axum::http::{HeaderMap, HeaderName, HeaderValue, header};
 use bytes::Bytes;
-use citymesh_core::geo::GeoBbox;
-use citymesh_core::scene::Scene;
+use citymesh_core::building::BuildingStats;
+use citymesh_core::building::set::extent_with;
+use citymesh_core::geo::{GeoBbox, TileCoord};
+use citymesh_core::scene::{Border, Scene};
+use citymesh_core::terrain::GroundReport;
 use std::time::Instant;
+
+/// What to generate.
+#[derive(Debug, Clone, Copy)]
+pub enum Area {
+    /// A box, buildings cut at its border (`/scene.glb`).
+    Scene(GeoBbox),
+    /// An XYZ tile: the ground cut to the tile, whole buildings whose cluster's representative
+    /// point lies in it.
+    Tile(TileCoord),
+}
 
 /// A generated GLB and what went into it.
 pub struct Generated {
@@ -21,25 +35,37 @@ pub struct GenerationStats {
     pub generation_ms: f64,
     pub vertices: usize,
     pub triangles: usize,
-    pub void_cells: usize,
+    pub ground: GroundReport,
     /// 1x1 degree areas without a DEM file, where the ground is the flat 0 m fallback.
     pub missing_dem: Vec<String>,
+    pub buildings: BuildingStats,
 }
 
-/// Generates the scene of `bbox` as GLB bytes.
-pub async fn scene_glb(state: &AppState, bbox: GeoBbox) -> Result<Generated, AppError> {
+/// Generates an area as GLB bytes.
+pub async fn generate(state: &AppState, area: Area) -> Result<Generated, AppError> {
     let dem = state.dem.clone();
+    let osm = state.osm.clone();
     let generated = tokio::task::spawn_blocking(move || {
         let started = Instant::now();
-        let lookup = dem.lookup(&bbox);
-        let scene = Scene::ground(&lookup.model, &bbox);
+        let (bbox, clusters, border) = match area {
+            Area::Scene(b) => (b, osm.set.clusters_intersecting(&b), Border::Truncate),
+            Area::Tile(t) => (t.bounds(), osm.set.clusters_of_tile(&t), Border::Whole),
+        };
+        // Whole buildings may reach past the box: their ground must be loaded too.
+        let lookup = dem.lookup(&extent_with(&bbox, &clusters));
+        let groups: Vec<_> = clusters
+            .iter()
+            .map(|c| osm.set.cluster_records(c))
+            .collect();
+        let scene = Scene::new(&lookup.model, &bbox, &groups, border);
         let glb = scene.to_glb();
         let stats = GenerationStats {
             generation_ms: started.elapsed().as_secs_f64() * 1e3,
             vertices: scene.mesh.positions.len(),
             triangles: scene.mesh.triangles.len(),
-            void_cells: scene.ground.void_cells,
+            ground: scene.ground,
             missing_dem: lookup.missing,
+            buildings: scene.buildings,
         };
         Generated {
             glb: Bytes::from(glb),
@@ -47,7 +73,12 @@ pub async fn scene_glb(state: &AppState, bbox: GeoBbox) -> Result<Generated, App
         }
     })
     .await?;
-    tracing::debug!(%bbox, ms = generated.stats.generation_ms, bytes = generated.glb.len(), "scene generated");
+    tracing::debug!(
+        ?area,
+        ms = generated.stats.generation_ms,
+        bytes = generated.glb.len(),
+        "generated"
+    );
     Ok(generated)
 }
 
@@ -70,12 +101,29 @@ pub fn glb_headers(stats: Option<&GenerationStats>) -> HeaderMap {
     );
     put("x-citymesh-vertices", s.vertices.to_string());
     put("x-citymesh-triangles", s.triangles.to_string());
-    put("x-citymesh-void-cells", s.void_cells.to_string());
+    put("x-citymesh-void-cells", s.ground.void_cells.to_string());
     let ground = if s.missing_dem.is_empty() {
         "dem".to_owned()
     } else {
         format!("flat-fallback; missing={}", s.missing_dem.join(","))
     };
     put("x-citymesh-ground", ground);
+    let b = &s.buildings;
+    put("x-citymesh-buildings", b.generated.to_string());
+    let skipped = if b.skipped.is_empty() {
+        "0".to_owned()
+    } else {
+        let reasons: Vec<String> = b.skipped.iter().map(|(r, n)| format!("{r}={n}")).collect();
+        format!("{}; {}", b.total_skipped(), reasons.join(","))
+    };
+    put("x-citymesh-buildings-skipped", skipped);
+    put(
+        "x-citymesh-flat-roofs-percent",
+        format!("{:.1}", b.flat_roof_percent()),
+    );
+    put(
+        "x-citymesh-roof-shapes-from-tags-percent",
+        format!("{:.1}", b.shape_from_tag_percent()),
+    );
     h
 }

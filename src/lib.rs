@@ -2,7 +2,8 @@
 //! meshes on demand.
 //!
 //! The geometry lives in the pure `citymesh-core` crate; this crate is everything around it: the
-//! command line ([`cli`]), the DEM file store ([`dem`]), the SQLite cache ([`db`]), the HTTP routes
+//! command line ([`cli`]), the DEM file store ([`dem`]), local OSM data ([`osm`]), the SQLite cache
+//! ([`db`]), the HTTP routes
 //! ([`routes`]) and the server's lifecycle ([`server`]). A request flows one way:
 //! route -> cache lookup -> data source -> core generator in `spawn_blocking` -> cache -> response.
 
@@ -11,6 +12,7 @@ pub mod db;
 pub mod dem;
 pub mod error;
 pub mod generate;
+pub mod osm;
 pub mod routes;
 pub mod server;
 pub mod state;

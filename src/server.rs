@@ -4,6 +4,7 @@
 use crate::cli::ServeArgs;
 use crate::db::{self, TileStore};
 use crate::dem::DemStore;
+use crate::osm::load_osm_files;
 use crate::state::{AppState, Limits};
 use anyhow::Context;
 use std::io::IsTerminal;
@@ -30,8 +31,19 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
     let dem_dir = args.dem_dir.clone();
     let cache_bytes = args.dem_cache_mb.saturating_mul(1 << 20);
     let dem = tokio::task::spawn_blocking(move || DemStore::open(&dem_dir, cache_bytes)).await?;
+    let osm_files = args.osm.clone();
+    let osm = tokio::task::spawn_blocking(move || load_osm_files(&osm_files)).await??;
+    if !args.osm.is_empty() {
+        tracing::info!(
+            buildings = osm.set.records().len(),
+            clusters = osm.set.clusters().len(),
+            skipped = osm.skipped_at_load,
+            "OSM buildings indexed"
+        );
+    }
     Ok(AppState {
         dem: Arc::new(dem),
+        osm: Arc::new(osm),
         tiles: TileStore::new(pool),
         limits: Limits {
             max_bbox_km2: args.max_bbox_km2,

@@ -1,7 +1,8 @@
-//! Shared server state: the DEM store, the tile cache and the limits, cheap to clone per request.
+//! Shared server state: the DEM store, the OSM buildings, the tile cache and the limits, cheap to clone per request.
 
 use crate::db::TileStore;
 use crate::dem::DemStore;
+use crate::osm::OsmData;
 use std::sync::Arc;
 
 /// Limits that protect the server from requests it should refuse.
@@ -15,6 +16,7 @@ pub struct Limits {
 #[derive(Clone)]
 pub struct AppState {
     pub dem: Arc<DemStore>,
+    pub osm: Arc<OsmData>,
     pub tiles: TileStore,
     pub limits: Limits,
 }

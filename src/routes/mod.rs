@@ -4,6 +4,7 @@
 mod health;
 mod index;
 mod scene;
+mod scene_stats;
 mod tiles;
 
 use crate::error::{AppError, ErrorBody};
@@ -21,7 +22,12 @@ use utoipa_swagger_ui::SwaggerUi;
         title = "citymesh",
         description = "3D city meshes (glTF binary) from OpenStreetMap buildings and SRTM terrain, generated on demand."
     ),
-    paths(health::health, scene::scene_glb, tiles::tile_glb),
+    paths(
+        health::health,
+        scene::scene_glb,
+        scene_stats::scene_stats,
+        tiles::tile_glb
+    ),
     components(schemas(ErrorBody, health::Health))
 )]
 pub struct ApiDoc;
@@ -39,6 +45,7 @@ pub fn app(state: AppState) -> Router {
         .route("/", get(index::index))
         .route("/health", get(health::health))
         .route("/scene.glb", get(scene::scene_glb))
+        .route("/scene/stats", get(scene_stats::scene_stats))
         .route("/tiles/{z}/{x}/{y}", get(tiles::tile_glb))
         .merge(SwaggerUi::new("/docs").url("/openapi.json", ApiDoc::openapi()))
         .fallback(not_found)

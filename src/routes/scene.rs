@@ -1,7 +1,7 @@
 //! `GET /scene.glb?bbox=`: the mesh of an area.
 
 use crate::error::{AppError, ErrorBody};
-use crate::generate::{glb_headers, scene_glb as generate_scene};
+use crate::generate::{Area, generate, glb_headers};
 use crate::state::AppState;
 use axum::extract::rejection::QueryRejection;
 use axum::extract::{Query, State};
@@ -18,12 +18,14 @@ pub struct SceneQuery {
     pub bbox: Option<String>,
 }
 
-/// The mesh of a bounding box as binary glTF.
+/// The mesh of a bounding box as binary glTF: the ground and the buildings of the server's OSM
+/// data, cut at the box border.
 ///
 /// Positions are metres in a local east-north-up frame whose origin (the box centre at 0 m above
 /// sea level) is stored in `scenes[0].extras.origin`; glTF axes are x = east, y = up, z = -north.
 /// The response headers `X-Citymesh-*` give the generation time, vertex and triangle counts, and
-/// whether the ground came from the DEM or the flat 0 m fallback.
+/// whether the ground came from the DEM or the flat 0 m fallback, and the building figures that
+/// `/scene/stats` gives in full.
 #[utoipa::path(get, path = "/scene.glb", tag = "meshes", params(SceneQuery),
     responses(
         (status = 200, description = "The scene", content_type = "model/gltf-binary", body = Vec<u8>,
@@ -33,6 +35,10 @@ pub struct SceneQuery {
                 ("X-Citymesh-Triangles" = u64, description = "Triangles of the generated mesh"),
                 ("X-Citymesh-Void-Cells" = u64, description = "Ground cells left empty by DEM voids"),
                 ("X-Citymesh-Ground" = String, description = "`dem`, or `flat-fallback; missing=N49E008,...`"),
+                ("X-Citymesh-Buildings" = u64, description = "Buildings and building parts generated"),
+                ("X-Citymesh-Buildings-Skipped" = String, description = "`0`, or the count and reasons, e.g. `2; self_intersecting=2`"),
+                ("X-Citymesh-Flat-Roofs-Percent" = f64, description = "Share of flat roofs (paper Tables 2 and 3)"),
+                ("X-Citymesh-Roof-Shapes-From-Tags-Percent" = f64, description = "Share of roof shapes taken from `roof:shape` tags rather than defaults"),
             )),
         (status = 400, description = "The bbox is missing, malformed, inverted, out of range or too large", body = ErrorBody),
     ))]
@@ -42,12 +48,12 @@ pub async fn scene_glb(
 ) -> Result<Response, AppError> {
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
     let bbox = parse_bbox(query.bbox.as_deref(), state.limits.max_bbox_km2)?;
-    let generated = generate_scene(&state, bbox).await?;
+    let generated = generate(&state, Area::Scene(bbox)).await?;
     Ok((glb_headers(Some(&generated.stats)), generated.glb).into_response())
 }
 
 /// Checks a `bbox` parameter against the format and the area limit.
-fn parse_bbox(text: Option<&str>, max_km2: f64) -> Result<GeoBbox, AppError> {
+pub(crate) fn parse_bbox(text: Option<&str>, max_km2: f64) -> Result<GeoBbox, AppError> {
     let text = text.ok_or_else(|| {
         AppError::bad_request(
             "missing_bbox",

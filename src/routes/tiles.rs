@@ -2,7 +2,7 @@
 
 use crate::db::TileKey;
 use crate::error::{AppError, ErrorBody};
-use crate::generate::{glb_headers, scene_glb};
+use crate::generate::{Area, generate, glb_headers};
 use crate::state::AppState;
 use axum::extract::rejection::PathRejection;
 use axum::extract::{Path, State};
@@ -12,7 +12,10 @@ use citymesh_core::geo::TileCoord;
 
 /// One XYZ tile as binary glTF.
 ///
-/// Each tile holds the ground clipped exactly to its bounds, in a local frame whose origin (the
+/// Each tile holds the ground clipped exactly to its bounds and, whole, the buildings whose
+/// cluster (buildings that touch, an outline with its parts) has its representative point, the
+/// centre of its bounding box, in the tile: every building lands in exactly one tile of a zoom
+/// level and is never cut. Buildings may reach past the tile's edge. The local frame's origin (the
 /// tile centre at 0 m above sea level) is stored in `scenes[0].extras.origin`. Zoom levels
 /// outside the served range (12 to 20 by default) answer 404.
 #[utoipa::path(get, path = "/tiles/{z}/{x}/{y}.glb", tag = "meshes",
@@ -47,7 +50,12 @@ pub async fn tile_glb(
         z: tile.z,
         x: tile.x,
         y: tile.y,
-        variant: format!("{}-{}", env!("CARGO_PKG_VERSION"), state.dem.fingerprint()),
+        variant: format!(
+            "{}-{}-{}",
+            env!("CARGO_PKG_VERSION"),
+            state.dem.fingerprint(),
+            state.osm.fingerprint
+        ),
     };
     if let Some(glb) = state.tiles.get(&key).await? {
         let mut headers = glb_headers(None);
@@ -57,7 +65,7 @@ pub async fn tile_glb(
         );
         return Ok((headers, glb).into_response());
     }
-    let generated = scene_glb(&state, tile.bounds()).await?;
+    let generated = generate(&state, Area::Tile(tile)).await?;
     state.tiles.put(&key, &generated.glb).await?;
     let mut headers = glb_headers(Some(&generated.stats));
     headers.insert(

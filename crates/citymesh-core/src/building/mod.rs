@@ -5,7 +5,8 @@
 //! virtual rectangle gives the roof surface ([`roof_surface`]), whose dividing segments cut the
 //! footprint ([`boundary`]); the roof and floor are triangulated ([`triangulate`]) and walls added
 //! ([`walls`]); touching volumes are meshed together without hidden walls ([`group`], grouped by
-//! [`cluster`]). [`generate`] runs it all for one cluster and counts into [`stats`].
+//! [`cluster`]). [`generate`] runs it all for one cluster and counts into [`stats`]; [`set`]
+//! indexes a whole data set's clusters by area and tile.
 
 pub mod axes;
 pub mod boundary;
@@ -17,6 +18,7 @@ pub mod group;
 pub mod params;
 pub mod roof;
 pub mod roof_surface;
+pub mod set;
 pub mod stats;
 pub mod tags;
 pub mod triangulate;

@@ -107,9 +107,10 @@ pub fn write_glb(mesh: &Mesh, origin: GlbOrigin) -> Vec<u8> {
             "materials": materials,
             "accessors": accessors,
             "bufferViews": [
-                {"buffer": 0, "byteOffset": 0, "byteLength": pos_len, "target": ARRAY_BUFFER},
-                {"buffer": 0, "byteOffset": pos_len, "byteLength": pos_len, "target": ARRAY_BUFFER},
-                {"buffer": 0, "byteOffset": pos_len * 2, "byteLength": col_len, "target": ARRAY_BUFFER},
+                // One view per attribute, shared by the primitives' accessors: so a stride.
+                {"buffer": 0, "byteOffset": 0, "byteLength": pos_len, "byteStride": 12, "target": ARRAY_BUFFER},
+                {"buffer": 0, "byteOffset": pos_len, "byteLength": pos_len, "byteStride": 12, "target": ARRAY_BUFFER},
+                {"buffer": 0, "byteOffset": pos_len * 2, "byteLength": col_len, "byteStride": 4, "target": ARRAY_BUFFER},
             ],
             "buffers": [{"byteLength": bin.len()}],
         })

@@ -1,0 +1,174 @@
+//! A set of buildings ready to serve: the records, their clusters, and a grid over the clusters'
+//! extents to find those of an area or a tile quickly.
+//!
+//! Each cluster has one representative point, the centre of its bounding box; a tile holds the
+//! clusters whose point lies in it, so every building lands in exactly one tile, whole.
+
+use super::cluster::{clusters, record_bounds};
+use crate::geo::{GeoBbox, TileCoord};
+use crate::osm::BuildingRecord;
+use std::collections::HashMap;
+
+/// Grid cell size in degrees (about 500 m).
+const CELL: f64 = 0.005;
+
+/// One cluster: its records (indices) and extent.
+#[derive(Debug, Clone)]
+pub struct ClusterInfo {
+    pub records: Vec<usize>,
+    /// (min lon, min lat, max lon, max lat).
+    pub bounds: [f64; 4],
+}
+
+impl ClusterInfo {
+    /// The point that decides the cluster's tile: the centre of its bounding box.
+    pub fn representative_point(&self) -> (f64, f64) {
+        let [x0, y0, x1, y1] = self.bounds;
+        ((x0 + x1) / 2.0, (y0 + y1) / 2.0)
+    }
+}
+
+/// Buildings with their clusters and a spatial index.
+#[derive(Debug, Clone, Default)]
+pub struct BuildingSet {
+    records: Vec<BuildingRecord>,
+    clusters: Vec<ClusterInfo>,
+    grid: HashMap<(i64, i64), Vec<u32>>,
+}
+
+fn cell(lon: f64, lat: f64) -> (i64, i64) {
+    ((lon / CELL).floor() as i64, (lat / CELL).floor() as i64)
+}
+
+impl BuildingSet {
+    /// Indexes records. Records with no outer ring or no finite coordinates are left out.
+    pub fn new(records: Vec<BuildingRecord>) -> Self {
+        let records: Vec<BuildingRecord> = records
+            .into_iter()
+            .filter(|r| {
+                let b = record_bounds(r);
+                b.iter().all(|v| v.is_finite()) && b[0] <= b[2] && b[1] <= b[3]
+            })
+            .collect();
+        let mut out = Self {
+            clusters: clusters(&records)
+                .into_iter()
+                .map(|c| {
+                    let bounds = c.iter().map(|&i| record_bounds(&records[i])).fold(
+                        [f64::MAX, f64::MAX, f64::MIN, f64::MIN],
+                        |a, b| {
+                            [
+                                a[0].min(b[0]),
+                                a[1].min(b[1]),
+                                a[2].max(b[2]),
+                                a[3].max(b[3]),
+                            ]
+                        },
+                    );
+                    ClusterInfo { records: c, bounds }
+                })
+                .collect(),
+            records,
+            grid: HashMap::new(),
+        };
+        for (i, c) in out.clusters.iter().enumerate() {
+            let [x0, y0, x1, y1] = c.bounds;
+            let ((cx0, cy0), (cx1, cy1)) = (cell(x0, y0), cell(x1, y1));
+            // A cluster larger than 100 x 100 cells (50 km) is data gone wrong: index its point.
+            let cells = if (cx1 - cx0 + 1) * (cy1 - cy0 + 1) > 10_000 {
+                let (x, y) = c.representative_point();
+                vec![cell(x, y)]
+            } else {
+                (cx0..=cx1)
+                    .flat_map(|cx| (cy0..=cy1).map(move |cy| (cx, cy)))
+                    .collect()
+            };
+            for k in cells {
+                out.grid.entry(k).or_default().push(i as u32);
+            }
+        }
+        out
+    }
+
+    pub fn records(&self) -> &[BuildingRecord] {
+        &self.records
+    }
+
+    pub fn clusters(&self) -> &[ClusterInfo] {
+        &self.clusters
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.records.is_empty()
+    }
+
+    /// The records of a cluster.
+    pub fn cluster_records(&self, c: &ClusterInfo) -> Vec<&BuildingRecord> {
+        c.records.iter().map(|&i| &self.records[i]).collect()
+    }
+
+    fn candidates(&self, bbox: &GeoBbox) -> Vec<u32> {
+        let ((cx0, cy0), (cx1, cy1)) = (
+            cell(bbox.min_lon(), bbox.min_lat()),
+            cell(bbox.max_lon(), bbox.max_lat()),
+        );
+        let mut out: Vec<u32> = Vec::new();
+        for cx in cx0..=cx1 {
+            for cy in cy0..=cy1 {
+                if let Some(list) = self.grid.get(&(cx, cy)) {
+                    out.extend_from_slice(list);
+                }
+            }
+        }
+        out.sort_unstable();
+        out.dedup();
+        out
+    }
+
+    /// Clusters with any part inside `bbox`, in a stable order.
+    pub fn clusters_intersecting(&self, bbox: &GeoBbox) -> Vec<&ClusterInfo> {
+        self.candidates(bbox)
+            .into_iter()
+            .map(|i| &self.clusters[i as usize])
+            .filter(|c| {
+                let [x0, y0, x1, y1] = c.bounds;
+                x0 <= bbox.max_lon()
+                    && x1 >= bbox.min_lon()
+                    && y0 <= bbox.max_lat()
+                    && y1 >= bbox.min_lat()
+            })
+            .collect()
+    }
+
+    /// Clusters whose representative point lies in the tile (each cluster is in exactly one
+    /// tile of a zoom level).
+    pub fn clusters_of_tile(&self, tile: &TileCoord) -> Vec<&ClusterInfo> {
+        self.candidates(&tile.bounds())
+            .into_iter()
+            .map(|i| &self.clusters[i as usize])
+            .filter(|c| {
+                let (x, y) = c.representative_point();
+                TileCoord::containing(tile.z, x, y) == *tile
+            })
+            .collect()
+    }
+}
+
+/// The smallest box holding `bbox` and every cluster's extent.
+pub fn extent_with(bbox: &GeoBbox, clusters: &[&ClusterInfo]) -> GeoBbox {
+    let mut e = [
+        bbox.min_lon(),
+        bbox.min_lat(),
+        bbox.max_lon(),
+        bbox.max_lat(),
+    ];
+    for c in clusters {
+        e = [
+            e[0].min(c.bounds[0]),
+            e[1].min(c.bounds[1]),
+            e[2].max(c.bounds[2]),
+            e[3].max(c.bounds[3]),
+        ];
+    }
+    GeoBbox::new(e[0], e[1], e[2], e[3]).unwrap_or(*bbox)
+}

@@ -1,0 +1,140 @@
+//! `GET /scene/stats?bbox=`: what went into the scene of an area, as JSON.
+
+use super::scene::{SceneQuery, parse_bbox};
+use crate::error::{AppError, ErrorBody};
+use crate::generate::{Area, generate};
+use crate::state::AppState;
+use axum::Json;
+use axum::extract::rejection::QueryRejection;
+use axum::extract::{Query, State};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use utoipa::ToSchema;
+
+/// The statistics of the paper's Tables 2 and 3 for one scene, and what was skipped.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct SceneStats {
+    /// Generation time of the mesh and its GLB, milliseconds.
+    pub generation_ms: f64,
+    /// Vertices and triangles of the generated mesh (ground and buildings).
+    pub vertices: usize,
+    pub triangles: usize,
+    /// Size of the GLB `/scene.glb` returns for the same box.
+    pub glb_bytes: usize,
+    /// Share of flat roofs among generated buildings, percent.
+    pub flat_roof_percent: f64,
+    /// Share of roof shapes taken from `roof:shape` tags, percent (the rest are defaults or
+    /// unsupported shapes rendered flat).
+    pub roof_shape_from_tag_percent: f64,
+    pub buildings: BuildingFigures,
+    pub ground: GroundFigures,
+}
+
+#[derive(Debug, Serialize, ToSchema)]
+pub struct BuildingFigures {
+    /// Buildings and building parts generated.
+    pub generated: usize,
+    /// Of those, `building:part`s.
+    pub parts: usize,
+    /// Buildings skipped, by reason (e.g. `self_intersecting`).
+    pub skipped: BTreeMap<String, usize>,
+    /// The skipped buildings (`way/123`, `relation/45`) with their reason.
+    pub skipped_ids: Vec<SkippedBuilding>,
+    /// Generated roofs per shape.
+    pub roof_shapes: BTreeMap<String, usize>,
+    /// Roof shapes from a `roof:shape` tag, by default (no tag: flat), and tags naming a shape
+    /// outside the paper's eight (rendered flat).
+    pub roof_shape_from_tag: usize,
+    pub roof_shape_default: usize,
+    pub roof_shape_unsupported: usize,
+    /// Total heights from `height`, from `building:levels`, and from the building type's default.
+    pub height_from_tag: usize,
+    pub height_from_levels: usize,
+    pub height_default: usize,
+    /// Tag values present but unusable ("tall", negative, NaN): the fallback was used.
+    pub invalid_tag_values: usize,
+    /// Outlines entirely covered by their `building:part`s (only the parts are drawn).
+    pub outlines_covered_by_parts: usize,
+    /// Walls between touching buildings, removed as hidden.
+    pub shared_walls: usize,
+}
+
+#[derive(Debug, Serialize, ToSchema)]
+pub struct SkippedBuilding {
+    pub id: String,
+    pub reason: String,
+}
+
+#[derive(Debug, Serialize, ToSchema)]
+pub struct GroundFigures {
+    /// Ground cells (SRTM samples) in the box, and those left empty by DEM voids.
+    pub cells: usize,
+    pub void_cells: usize,
+    /// 1x1 degree areas without a DEM file (flat 0 m ground there).
+    pub missing_dem: Vec<String>,
+}
+
+/// Statistics of the scene of a bounding box.
+///
+/// Generates the same scene as `/scene.glb` and reports generation time, vertex and triangle
+/// counts, the share of flat roofs and of roof shapes from tags (the paper's Tables 2 and 3),
+/// buildings generated and skipped with reasons, and where the ground came from.
+#[utoipa::path(get, path = "/scene/stats", tag = "meshes", params(SceneQuery),
+    responses(
+        (status = 200, description = "The figures", body = SceneStats),
+        (status = 400, description = "The bbox is missing, malformed, inverted, out of range or too large", body = ErrorBody),
+    ))]
+pub async fn scene_stats(
+    State(state): State<AppState>,
+    query: Result<Query<SceneQuery>, QueryRejection>,
+) -> Result<Json<SceneStats>, AppError> {
+    let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
+    let bbox = parse_bbox(query.bbox.as_deref(), state.limits.max_bbox_km2)?;
+    let generated = generate(&state, Area::Scene(bbox)).await?;
+    let s = generated.stats;
+    let b = s.buildings;
+    Ok(Json(SceneStats {
+        generation_ms: s.generation_ms,
+        vertices: s.vertices,
+        triangles: s.triangles,
+        glb_bytes: generated.glb.len(),
+        flat_roof_percent: b.flat_roof_percent(),
+        roof_shape_from_tag_percent: b.shape_from_tag_percent(),
+        buildings: BuildingFigures {
+            generated: b.generated,
+            parts: b.parts,
+            skipped: b
+                .skipped
+                .iter()
+                .map(|(k, v)| ((*k).to_owned(), *v))
+                .collect(),
+            skipped_ids: b
+                .skipped_ids
+                .iter()
+                .map(|(id, reason)| SkippedBuilding {
+                    id: id.clone(),
+                    reason: (*reason).to_owned(),
+                })
+                .collect(),
+            roof_shapes: b
+                .roof_shapes
+                .iter()
+                .map(|(k, v)| ((*k).to_owned(), *v))
+                .collect(),
+            roof_shape_from_tag: b.shape_from_tag,
+            roof_shape_default: b.shape_default,
+            roof_shape_unsupported: b.shape_unsupported,
+            height_from_tag: b.height_from_tag,
+            height_from_levels: b.height_from_levels,
+            height_default: b.height_default,
+            invalid_tag_values: b.invalid_tags,
+            outlines_covered_by_parts: b.outlines_covered_by_parts,
+            shared_walls: b.shared_walls,
+        },
+        ground: GroundFigures {
+            cells: s.ground.cells,
+            void_cells: s.ground.void_cells,
+            missing_dem: s.missing_dem,
+        },
+    }))
+}

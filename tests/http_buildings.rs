@@ -1,0 +1,235 @@
+//! Buildings served over HTTP from local OSM files: real buildings on real terrain in
+//! `/scene.glb` and `/tiles`, the figures in `/scene/stats` and the response headers, every
+//! real file's scene through the Khronos glTF Validator, and each building in exactly one tile.
+
+mod common;
+
+use axum::http::StatusCode;
+use citymesh_core::building::clusters;
+use citymesh_core::geo::{GeoBbox, TileCoord};
+use citymesh_core::osm::{BuildingRecord, read_buildings};
+use citymesh_core::scene::{Border, Scene};
+use citymesh_core::terrain::ElevationModel;
+use common::{app_with, assert_valid_glb, data_dir, dem_dir, get};
+use std::io::Read;
+
+fn osm(name: &str) -> String {
+    data_dir().join("osm").join(name).display().to_string()
+}
+
+async fn kirchfeld_app(db: &tempfile::TempDir) -> axum::Router {
+    let file = osm("karlsruhe-kirchfeld.osm.pbf");
+    app_with(&dem_dir(), &db.path().join("c.sqlite"), &["--osm", &file]).await
+}
+
+#[tokio::test]
+async fn scene_shows_real_buildings_on_real_terrain() {
+    let db = tempfile::tempdir().unwrap();
+    let app = kirchfeld_app(&db).await;
+    let health = get(&app, "/health").await.json();
+    assert_eq!(health["buildings"], 2995 + 31);
+
+    let glb = get(&app, "/scene.glb?bbox=8.39,49.04,8.41,49.06").await;
+    assert_eq!(glb.status, StatusCode::OK);
+    assert_valid_glb(&glb.body);
+    assert_eq!(glb.header("x-citymesh-ground"), "dem");
+    assert_eq!(glb.header("x-citymesh-buildings-skipped"), "0");
+    let generated: usize = glb.header("x-citymesh-buildings").parse().unwrap();
+
+    let stats = get(&app, "/scene/stats?bbox=8.39,49.04,8.41,49.06").await;
+    assert_eq!(stats.status, StatusCode::OK);
+    let s = stats.json();
+    // The same scene: the same figures as the GLB's headers.
+    assert_eq!(s["buildings"]["generated"], generated);
+    assert_eq!(s["glb_bytes"], glb.body.len());
+    assert_eq!(
+        s["triangles"].to_string(),
+        glb.header("x-citymesh-triangles")
+    );
+    assert_eq!(s["vertices"].to_string(), glb.header("x-citymesh-vertices"));
+    assert_eq!(
+        format!("{:.1}", s["flat_roof_percent"].as_f64().unwrap()),
+        glb.header("x-citymesh-flat-roofs-percent")
+    );
+
+    // Counted independently: records with any node in the box (the box cuts the rest away).
+    let b = read_buildings(&std::fs::read(osm("karlsruhe-kirchfeld.osm.pbf")).unwrap()).unwrap();
+    let bbox = GeoBbox::new(8.39, 49.04, 8.41, 49.06).unwrap();
+    let inside = b
+        .buildings
+        .iter()
+        .filter(|r| {
+            r.outers
+                .iter()
+                .flat_map(|o| &o.nodes)
+                .all(|n| bbox.contains(n.lon, n.lat))
+        })
+        .count();
+    let touching = b
+        .buildings
+        .iter()
+        .filter(|r| {
+            r.outers
+                .iter()
+                .flat_map(|o| &o.nodes)
+                .any(|n| bbox.contains(n.lon, n.lat))
+        })
+        .count();
+    let covered = s["buildings"]["outlines_covered_by_parts"]
+        .as_u64()
+        .unwrap() as usize;
+    assert!(
+        generated + covered >= inside && generated <= touching,
+        "{generated} generated; {inside} inside, {touching} touching"
+    );
+    let shapes = &s["buildings"]["roof_shapes"];
+    let total: u64 = shapes
+        .as_object()
+        .unwrap()
+        .values()
+        .map(|v| v.as_u64().unwrap())
+        .sum();
+    assert_eq!(total as usize, generated);
+    assert_eq!(
+        s["buildings"]["roof_shape_from_tag"].as_u64().unwrap()
+            + s["buildings"]["roof_shape_default"].as_u64().unwrap()
+            + s["buildings"]["roof_shape_unsupported"].as_u64().unwrap(),
+        generated as u64
+    );
+    assert!(s["ground"]["missing_dem"].as_array().unwrap().is_empty());
+}
+
+#[tokio::test]
+async fn stats_refuse_a_bad_box_like_the_scene() {
+    let db = tempfile::tempdir().unwrap();
+    let app = kirchfeld_app(&db).await;
+    let a = get(&app, "/scene/stats?bbox=8.41,49.04,8.39,49.06").await;
+    assert_eq!(a.status, StatusCode::BAD_REQUEST);
+    assert_eq!(a.json()["error"], "invalid_bbox");
+    let a = get(&app, "/scene/stats").await;
+    assert_eq!(a.status, StatusCode::BAD_REQUEST);
+    assert_eq!(a.json()["error"], "missing_bbox");
+}
+
+#[tokio::test]
+async fn every_building_lands_in_exactly_one_tile() {
+    let db = tempfile::tempdir().unwrap();
+    let app = kirchfeld_app(&db).await;
+    // All z15 tiles over the buildings' extent (8.3877,49.0390 - 8.4039,49.0640).
+    let (a, b) = (
+        TileCoord::containing(15, 8.3877, 49.0640),
+        TileCoord::containing(15, 8.4039, 49.0390),
+    );
+    let mut total = 0;
+    let mut with_buildings = 0;
+    for x in a.x..=b.x {
+        for y in a.y..=b.y {
+            let t = get(&app, &format!("/tiles/15/{x}/{y}.glb")).await;
+            assert_eq!(t.status, StatusCode::OK);
+            let n: usize = t.header("x-citymesh-buildings").parse().unwrap();
+            if n > 0 {
+                with_buildings += 1;
+                assert_valid_glb(&t.body);
+            }
+            total += n;
+        }
+    }
+    assert!(with_buildings >= 2, "the area spans several tiles");
+    // Every record is generated once across the tiles (outlines covered by parts excepted).
+    assert_eq!(total, 3020);
+}
+
+fn bytes(name: &str) -> Vec<u8> {
+    let raw = std::fs::read(osm(name)).unwrap();
+    if !name.ends_with(".gz") {
+        return raw;
+    }
+    let mut out = Vec::new();
+    flate2::read::GzDecoder::new(&raw[..])
+        .read_to_end(&mut out)
+        .unwrap();
+    out
+}
+
+#[test]
+fn every_real_file_gives_a_valid_glb() {
+    for (file, dem) in [
+        ("karlsruhe-kirchfeld.osm.pbf", Some("N49E008.hgt")),
+        ("karlsruhe-kit-nord.osm.pbf", Some("N49E008.hgt")),
+        ("tram-junction.osm.pbf", Some("N49E008.hgt")),
+        ("nuremberg-laufamholz.osm", Some("N49E011.hgt")),
+        ("san-francisco.overpass.json.gz", None),
+    ] {
+        let b = read_buildings(&bytes(file)).unwrap();
+        let groups: Vec<Vec<&BuildingRecord>> = clusters(&b.buildings)
+            .iter()
+            .map(|c| c.iter().map(|&i| &b.buildings[i]).collect())
+            .collect();
+        let mut e = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
+        for n in b
+            .buildings
+            .iter()
+            .flat_map(|r| &r.outers)
+            .flat_map(|r| &r.nodes)
+        {
+            e = [
+                e[0].min(n.lon),
+                e[1].min(n.lat),
+                e[2].max(n.lon),
+                e[3].max(n.lat),
+            ];
+        }
+        let model = match dem {
+            Some(name) => {
+                let (lat, lon) = citymesh_core::terrain::parse_hgt_name(name).unwrap();
+                let bytes = std::fs::read(dem_dir().join(name)).unwrap();
+                ElevationModel::new(vec![std::sync::Arc::new(
+                    citymesh_core::terrain::HgtTile::from_bytes(lat, lon, &bytes).unwrap(),
+                )])
+            }
+            None => ElevationModel::default(),
+        };
+        let bbox = GeoBbox::new(e[0], e[1], e[2], e[3]).unwrap();
+        let scene = Scene::new(&model, &bbox, &groups, Border::Whole);
+        let report = common::validate_glb(&scene.to_glb());
+        assert_eq!(report["errors"], 0, "{file}: {report}");
+        assert_eq!(report["warnings"], 0, "{file}: {report}");
+    }
+}
+
+#[tokio::test]
+async fn a_gzipped_overpass_response_is_served_on_flat_fallback_ground() {
+    let db = tempfile::tempdir().unwrap();
+    let file = osm("san-francisco.overpass.json.gz");
+    let app = app_with(&dem_dir(), &db.path().join("c.sqlite"), &["--osm", &file]).await;
+    let s = get(&app, "/scene/stats?bbox=-122.47,37.76,-122.46,37.77")
+        .await
+        .json();
+    assert!(s["buildings"]["generated"].as_u64().unwrap() > 100, "{s}");
+    assert_eq!(s["ground"]["missing_dem"][0], "N37W123");
+    let glb = get(&app, "/scene.glb?bbox=-122.47,37.76,-122.46,37.77").await;
+    assert_eq!(
+        glb.header("x-citymesh-ground"),
+        "flat-fallback; missing=N37W123"
+    );
+}
+
+#[tokio::test]
+async fn a_file_that_is_not_osm_stops_start_up_with_a_clear_message() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.osm");
+    std::fs::write(&bad, b"this is not OSM").unwrap();
+    let args = <citymesh::cli::ServeArgs as clap::Parser>::parse_from([
+        "serve",
+        "--cache-db",
+        ":memory:",
+        "--osm",
+        bad.to_str().unwrap(),
+    ]);
+    let err = citymesh::server::build_state(&args).await.err().unwrap();
+    let text = format!("{err:#}");
+    assert!(
+        text.contains("bad.osm") && text.contains("OSM PBF, OSM XML or Overpass JSON"),
+        "{text}"
+    );
+}
