@@ -5,13 +5,12 @@
 mod common;
 
 use axum::http::StatusCode;
-use citymesh_core::building::clusters;
+use citymesh_core::building::set::BuildingSet;
 use citymesh_core::geo::{GeoBbox, TileCoord};
-use citymesh_core::osm::{BuildingRecord, read_buildings};
+use citymesh_core::osm::read_buildings;
 use citymesh_core::scene::{Border, Scene};
 use citymesh_core::terrain::ElevationModel;
-use common::{app_with, assert_valid_glb, data_dir, dem_dir, get};
-use std::io::Read;
+use common::{app_with, assert_valid_glb, data_dir, dem_dir, get, osm_bytes};
 
 fn osm(name: &str) -> String {
     data_dir().join("osm").join(name).display().to_string()
@@ -53,7 +52,7 @@ async fn scene_shows_real_buildings_on_real_terrain() {
     );
 
     // Counted independently: records with any node in the box (the box cuts the rest away).
-    let b = read_buildings(&std::fs::read(osm("karlsruhe-kirchfeld.osm.pbf")).unwrap()).unwrap();
+    let b = read_buildings(&osm_bytes("karlsruhe-kirchfeld.osm.pbf")).unwrap();
     let bbox = GeoBbox::new(8.39, 49.04, 8.41, 49.06).unwrap();
     let inside = b
         .buildings
@@ -139,18 +138,6 @@ async fn every_building_lands_in_exactly_one_tile() {
     assert_eq!(total, 3020);
 }
 
-fn bytes(name: &str) -> Vec<u8> {
-    let raw = std::fs::read(osm(name)).unwrap();
-    if !name.ends_with(".gz") {
-        return raw;
-    }
-    let mut out = Vec::new();
-    flate2::read::GzDecoder::new(&raw[..])
-        .read_to_end(&mut out)
-        .unwrap();
-    out
-}
-
 #[test]
 fn every_real_file_gives_a_valid_glb() {
     for (file, dem) in [
@@ -160,25 +147,7 @@ fn every_real_file_gives_a_valid_glb() {
         ("nuremberg-laufamholz.osm", Some("N49E011.hgt")),
         ("san-francisco.overpass.json.gz", None),
     ] {
-        let b = read_buildings(&bytes(file)).unwrap();
-        let groups: Vec<Vec<&BuildingRecord>> = clusters(&b.buildings)
-            .iter()
-            .map(|c| c.iter().map(|&i| &b.buildings[i]).collect())
-            .collect();
-        let mut e = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
-        for n in b
-            .buildings
-            .iter()
-            .flat_map(|r| &r.outers)
-            .flat_map(|r| &r.nodes)
-        {
-            e = [
-                e[0].min(n.lon),
-                e[1].min(n.lat),
-                e[2].max(n.lon),
-                e[3].max(n.lat),
-            ];
-        }
+        let set = BuildingSet::new(read_buildings(&osm_bytes(file)).unwrap().buildings);
         let model = match dem {
             Some(name) => {
                 let (lat, lon) = citymesh_core::terrain::parse_hgt_name(name).unwrap();
@@ -189,8 +158,7 @@ fn every_real_file_gives_a_valid_glb() {
             }
             None => ElevationModel::default(),
         };
-        let bbox = GeoBbox::new(e[0], e[1], e[2], e[3]).unwrap();
-        let scene = Scene::new(&model, &bbox, &groups, Border::Whole);
+        let scene = Scene::new(&model, &set.extent().unwrap(), &set.groups(), Border::Whole);
         let report = common::validate_glb(&scene.to_glb());
         assert_eq!(report["errors"], 0, "{file}: {report}");
         assert_eq!(report["warnings"], 0, "{file}: {report}");

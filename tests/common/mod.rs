@@ -23,6 +23,22 @@ pub fn data_dir() -> PathBuf {
     dir
 }
 
+/// The bytes of a file in `osm/`, unzipped when it ends in `.gz`.
+pub fn osm_bytes(name: &str) -> Vec<u8> {
+    use std::io::Read;
+    let path = data_dir().join("osm").join(name);
+    let raw =
+        std::fs::read(&path).unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
+    if !name.ends_with(".gz") {
+        return raw;
+    }
+    let mut out = Vec::new();
+    flate2::read::GzDecoder::new(&raw[..])
+        .read_to_end(&mut out)
+        .unwrap();
+    out
+}
+
 pub fn dem_dir() -> PathBuf {
     data_dir().join("dem")
 }

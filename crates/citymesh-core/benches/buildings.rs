@@ -4,8 +4,8 @@
 //! (default `../shared/data`).
 
 use citymesh_core::building::clusters;
-use citymesh_core::geo::GeoBbox;
-use citymesh_core::osm::{BuildingRecord, read_buildings};
+use citymesh_core::building::set::BuildingSet;
+use citymesh_core::osm::read_buildings;
 use citymesh_core::scene::{Border, Scene};
 use citymesh_core::terrain::{ElevationModel, HgtTile};
 use criterion::{Criterion, criterion_group, criterion_main};
@@ -27,27 +27,9 @@ fn kirchfeld(c: &mut Criterion) {
         HgtTile::from_bytes(49, 8, &read("dem/N49E008.hgt")).unwrap(),
     )]);
     let pbf = read("osm/karlsruhe-kirchfeld.osm.pbf");
-    let osm = read_buildings(&pbf).unwrap();
-    let groups: Vec<Vec<&BuildingRecord>> = clusters(&osm.buildings)
-        .iter()
-        .map(|c| c.iter().map(|&i| &osm.buildings[i]).collect())
-        .collect();
-    // The buildings' own extent.
-    let mut e = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
-    for n in osm
-        .buildings
-        .iter()
-        .flat_map(|r| &r.outers)
-        .flat_map(|r| &r.nodes)
-    {
-        e = [
-            e[0].min(n.lon),
-            e[1].min(n.lat),
-            e[2].max(n.lon),
-            e[3].max(n.lat),
-        ];
-    }
-    let bbox = GeoBbox::new(e[0], e[1], e[2], e[3]).unwrap();
+    let set = BuildingSet::new(read_buildings(&pbf).unwrap().buildings);
+    let groups = set.groups();
+    let bbox = set.extent().unwrap();
 
     let scene = Scene::new(&model, &bbox, &groups, Border::Whole);
     let glb = scene.to_glb();
@@ -59,27 +41,16 @@ fn kirchfeld(c: &mut Criterion) {
         glb.len()
     );
 
-    c.bench_function("kirchfeld_scene_to_glb", |b| {
-        b.iter(|| {
-            Scene::new(
-                black_box(&model),
-                black_box(&bbox),
-                black_box(&groups),
-                Border::Whole,
-            )
-            .to_glb()
-        })
-    });
-    c.bench_function("kirchfeld_scene_mesh_only", |b| {
-        b.iter(|| {
-            Scene::new(
-                black_box(&model),
-                black_box(&bbox),
-                black_box(&groups),
-                Border::Whole,
-            )
-        })
-    });
+    let build = || {
+        Scene::new(
+            black_box(&model),
+            black_box(&bbox),
+            black_box(&groups),
+            Border::Whole,
+        )
+    };
+    c.bench_function("kirchfeld_scene_to_glb", |b| b.iter(|| build().to_glb()));
+    c.bench_function("kirchfeld_scene_mesh_only", |b| b.iter(build));
     c.bench_function("kirchfeld_pbf_parse_and_cluster", |b| {
         b.iter(|| {
             let osm = read_buildings(black_box(&pbf)).unwrap();

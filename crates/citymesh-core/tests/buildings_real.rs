@@ -4,46 +4,20 @@
 
 mod common;
 
-use citymesh_core::building::clusters;
+use citymesh_core::building::set::BuildingSet;
 use citymesh_core::geo::{GeoBbox, LocalFrame};
 use citymesh_core::mesh::check_closed;
-use citymesh_core::osm::{BuildingRecord, OsmBuildings, read_buildings};
+use citymesh_core::osm::{OsmBuildings, read_buildings};
 use citymesh_core::scene::{Border, Scene};
 use citymesh_core::terrain::ElevationModel;
 use rstest::rstest;
 use std::collections::BTreeMap;
-use std::io::Read;
 
-fn bytes(name: &str) -> Vec<u8> {
-    let path = common::data_dir().join("osm").join(name);
-    let b = std::fs::read(&path).unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
-    if !name.ends_with(".gz") {
-        return b;
-    }
-    let mut out = Vec::new();
-    flate2::read::GzDecoder::new(&b[..])
-        .read_to_end(&mut out)
-        .unwrap();
-    out
-}
+use common::osm_bytes as bytes;
 
 /// The buildings' own extent (the files' bboxes reach far out, see the data README).
 fn extent(b: &OsmBuildings) -> GeoBbox {
-    let mut e = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
-    for n in b
-        .buildings
-        .iter()
-        .flat_map(|r| &r.outers)
-        .flat_map(|r| &r.nodes)
-    {
-        e = [
-            e[0].min(n.lon),
-            e[1].min(n.lat),
-            e[2].max(n.lon),
-            e[3].max(n.lat),
-        ];
-    }
-    GeoBbox::new(e[0], e[1], e[2], e[3]).unwrap()
+    BuildingSet::new(b.buildings.clone()).extent().unwrap()
 }
 
 fn dem_for(file: &str) -> ElevationModel {
@@ -56,11 +30,13 @@ fn dem_for(file: &str) -> ElevationModel {
 
 fn whole_scene(file: &str) -> (OsmBuildings, Scene) {
     let b = read_buildings(&bytes(file)).unwrap();
-    let groups: Vec<Vec<&BuildingRecord>> = clusters(&b.buildings)
-        .iter()
-        .map(|c| c.iter().map(|&i| &b.buildings[i]).collect())
-        .collect();
-    let scene = Scene::new(&dem_for(file), &extent(&b), &groups, Border::Whole);
+    let set = BuildingSet::new(b.buildings.clone());
+    let scene = Scene::new(
+        &dem_for(file),
+        &set.extent().unwrap(),
+        &set.groups(),
+        Border::Whole,
+    );
     (b, scene)
 }
 
@@ -162,11 +138,8 @@ fn pbf_and_overpass_json_give_the_same_mesh() {
     let bbox = extent(&pbf);
     let model = dem_for("karlsruhe");
     let scene = |b: &OsmBuildings| {
-        let groups: Vec<Vec<&BuildingRecord>> = clusters(&b.buildings)
-            .iter()
-            .map(|c| c.iter().map(|&i| &b.buildings[i]).collect())
-            .collect();
-        Scene::new(&model, &bbox, &groups, Border::Whole)
+        let set = BuildingSet::new(b.buildings.clone());
+        Scene::new(&model, &bbox, &set.groups(), Border::Whole)
     };
     let (a, b) = (scene(&pbf), scene(&json));
     assert_eq!(a.buildings, b.buildings);
@@ -304,12 +277,14 @@ fn no_building_floats_above_the_ground() {
 #[test]
 fn a_scene_box_truncates_buildings_at_its_border() {
     let b = read_buildings(&bytes("karlsruhe-kirchfeld.osm.pbf")).unwrap();
-    let groups: Vec<Vec<&BuildingRecord>> = clusters(&b.buildings)
-        .iter()
-        .map(|c| c.iter().map(|&i| &b.buildings[i]).collect())
-        .collect();
+    let set = BuildingSet::new(b.buildings);
     let bbox = GeoBbox::new(8.39, 49.045, 8.40, 49.05).unwrap();
-    let scene = Scene::new(&dem_for("karlsruhe"), &bbox, &groups, Border::Truncate);
+    let scene = Scene::new(
+        &dem_for("karlsruhe"),
+        &bbox,
+        &set.groups(),
+        Border::Truncate,
+    );
     let lo = scene.frame.to_local(bbox.min_lon(), bbox.min_lat(), 0.0);
     let hi = scene.frame.to_local(bbox.max_lon(), bbox.max_lat(), 0.0);
     for p in &scene.mesh.positions {

@@ -27,6 +27,22 @@ pub fn hgt(name: &str) -> Arc<HgtTile> {
     Arc::new(HgtTile::from_bytes(lat, lon, &bytes).unwrap())
 }
 
+/// The bytes of a file in `osm/`, unzipped when it ends in `.gz`.
+pub fn osm_bytes(name: &str) -> Vec<u8> {
+    use std::io::Read;
+    let path = data_dir().join("osm").join(name);
+    let raw =
+        std::fs::read(&path).unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
+    if !name.ends_with(".gz") {
+        return raw;
+    }
+    let mut out = Vec::new();
+    flate2::read::GzDecoder::new(&raw[..])
+        .read_to_end(&mut out)
+        .unwrap();
+    out
+}
+
 /// A model over the named HGT files.
 pub fn model(names: &[&str]) -> ElevationModel {
     ElevationModel::new(names.iter().map(|n| hgt(n)).collect())

@@ -6,21 +6,8 @@ use citymesh_core::osm::{BuildingRecord, OsmBuildings, read_buildings};
 use rstest::rstest;
 use serde_json::{Value, json};
 use std::collections::HashMap;
-use std::io::Read;
 
-fn bytes(name: &str) -> Vec<u8> {
-    let path = common::data_dir().join("osm").join(name);
-    let bytes =
-        std::fs::read(&path).unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
-    if !name.ends_with(".gz") {
-        return bytes;
-    }
-    let mut out = Vec::new();
-    flate2::read::GzDecoder::new(&bytes[..])
-        .read_to_end(&mut out)
-        .unwrap();
-    out
-}
+use common::osm_bytes as bytes;
 
 fn read(name: &str) -> OsmBuildings {
     read_buildings(&bytes(name)).unwrap()

@@ -107,6 +107,31 @@ impl BuildingSet {
         c.records.iter().map(|&i| &self.records[i]).collect()
     }
 
+    /// Every cluster's records, in cluster order: the input of [`crate::scene::Scene::new`].
+    pub fn groups(&self) -> Vec<Vec<&BuildingRecord>> {
+        self.clusters
+            .iter()
+            .map(|c| self.cluster_records(c))
+            .collect()
+    }
+
+    /// The extent of all buildings, or `None` for an empty set.
+    pub fn extent(&self) -> Option<GeoBbox> {
+        let e = self
+            .clusters
+            .iter()
+            .fold([f64::MAX, f64::MAX, f64::MIN, f64::MIN], |a, c| {
+                let b = c.bounds;
+                [
+                    a[0].min(b[0]),
+                    a[1].min(b[1]),
+                    a[2].max(b[2]),
+                    a[3].max(b[3]),
+                ]
+            });
+        GeoBbox::new(e[0], e[1], e[2], e[3]).ok()
+    }
+
     fn candidates(&self, bbox: &GeoBbox) -> Vec<u32> {
         let ((cx0, cy0), (cx1, cy1)) = (
             cell(bbox.min_lon(), bbox.min_lat()),

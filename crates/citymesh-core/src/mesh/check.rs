@@ -59,13 +59,7 @@ pub fn check_closed(mesh: &Mesh, range: std::ops::Range<usize>) -> ClosedReport 
             *ids.entry(key).or_insert(next)
         });
         let [a, b, c] = corners.map(|p| [p[0] - origin[0], p[1] - origin[1], p[2] - origin[2]]);
-        let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-        let w = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-        let n = [
-            u[1] * w[2] - u[2] * w[1],
-            u[2] * w[0] - u[0] * w[2],
-            u[0] * w[1] - u[1] * w[0],
-        ];
+        let n = super::triangle_normal(a, b, c);
         let area2 = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
         if id[0] == id[1] || id[1] == id[2] || id[0] == id[2] || area2 <= 1e-10 {
             report.degenerate += 1;

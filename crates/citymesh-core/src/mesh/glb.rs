@@ -121,13 +121,7 @@ pub fn write_glb(mesh: &Mesh, origin: GlbOrigin) -> Vec<u8> {
 /// The unit normal of a counter-clockwise triangle, mapped to glTF axes, or `None` when the
 /// triangle has no area.
 fn face_normal([a, b, c]: [[f64; 3]; 3]) -> Option<[f32; 3]> {
-    let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-    let w = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-    let n = [
-        u[1] * w[2] - u[2] * w[1],
-        u[2] * w[0] - u[0] * w[2],
-        u[0] * w[1] - u[1] * w[0],
-    ];
+    let n = super::triangle_normal(a, b, c);
     let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
     if !len.is_finite() || len <= 1e-12 {
         return None;

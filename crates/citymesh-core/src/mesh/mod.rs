@@ -11,6 +11,19 @@ pub use check::{ClosedReport, check_closed};
 pub use colour::Rgb;
 pub use glb::{GlbOrigin, write_glb};
 
+/// The cross product `(b - a) x (c - a)`: the normal of a counter-clockwise triangle, with twice
+/// its area as length.
+#[inline]
+pub fn triangle_normal(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> [f64; 3] {
+    let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+    let w = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+    [
+        u[1] * w[2] - u[2] * w[1],
+        u[2] * w[0] - u[0] * w[2],
+        u[0] * w[1] - u[1] * w[0],
+    ]
+}
+
 /// What a face is, which decides its glTF material.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Material {
