@@ -18,6 +18,29 @@ pub enum Command {
     Serve(ServeArgs),
     /// Print the OpenAPI description the server serves at /openapi.json.
     Openapi,
+    /// Store OSM files (PBF, OSM XML or Overpass JSON, optionally .gz) as data tiles in the
+    /// cache database, so `serve --offline` has buildings without any upstream.
+    Import(ImportArgs),
+}
+
+/// Options of `citymesh import`.
+#[derive(Debug, Clone, Parser)]
+pub struct ImportArgs {
+    /// The OSM files.
+    #[arg(required = true)]
+    pub files: Vec<PathBuf>,
+
+    /// SQLite file to write into (the one `serve --cache-db` uses).
+    #[arg(
+        long,
+        env = "CITYMESH_CACHE_DB",
+        default_value = "data/citymesh.sqlite"
+    )]
+    pub cache_db: String,
+
+    /// No progress bars.
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 impl Default for Command {
@@ -48,9 +71,51 @@ pub struct ServeArgs {
     pub cache_db: String,
 
     /// OSM data to serve buildings from: OSM PBF, OSM XML or Overpass JSON, optionally gzipped.
-    /// Repeat the flag (or separate files with commas in CITYMESH_OSM) for several files.
+    /// Repeat the flag (or separate files with commas in CITYMESH_OSM) for several files. Without
+    /// it, buildings come from data tiles: the cache database, filled by `citymesh import` or
+    /// from Overpass.
     #[arg(long = "osm", env = "CITYMESH_OSM", value_delimiter = ',')]
     pub osm: Vec<PathBuf>,
+
+    /// Overpass API endpoint(s), tried in turn when one fails (repeat the flag, or separate with
+    /// commas).
+    #[arg(long, env = "CITYMESH_OVERPASS_URL", value_delimiter = ',',
+          default_value = crate::upstream::DEFAULT_OVERPASS_URL)]
+    pub overpass_url: Vec<String>,
+
+    /// Never call Overpass: data tiles not in the cache database have no buildings.
+    #[arg(long, env = "CITYMESH_OFFLINE")]
+    pub offline: bool,
+
+    /// Seconds one Overpass request may take.
+    #[arg(long, env = "CITYMESH_OVERPASS_TIMEOUT_S", default_value_t = 60.0)]
+    pub overpass_timeout_s: f64,
+
+    /// Retries of a failed Overpass request (429, 5xx, timeouts), with doubling backoff from
+    /// 1 s, or the `Retry-After` Overpass sends.
+    #[arg(long, env = "CITYMESH_OVERPASS_RETRIES", default_value_t = 2)]
+    pub overpass_retries: u32,
+
+    /// Overpass requests in flight at most (the public instance allows about two per client).
+    #[arg(long, env = "CITYMESH_OVERPASS_MAX_CONCURRENT", default_value_t = 2)]
+    pub overpass_max_concurrent: usize,
+
+    /// Hours after which stored Overpass data is refreshed (served meanwhile). Imported data is
+    /// never refreshed.
+    #[arg(long, env = "CITYMESH_OSM_TTL_HOURS", default_value_t = 168.0)]
+    pub osm_ttl_hours: f64,
+
+    /// Memory for generated tiles, in megabytes.
+    #[arg(long, env = "CITYMESH_TILE_CACHE_MB", default_value_t = 256)]
+    pub tile_cache_mb: u64,
+
+    /// Generations running at once at most (default: the number of CPU cores).
+    #[arg(long, env = "CITYMESH_MAX_GENERATIONS")]
+    pub max_generations: Option<usize>,
+
+    /// Milliseconds a request waits for a free generation slot before a 503 with Retry-After.
+    #[arg(long, env = "CITYMESH_GENERATION_WAIT_MS", default_value_t = 10_000)]
+    pub generation_wait_ms: u64,
 
     /// Log filter: error, warn, info, debug, trace, or a tracing directive like `citymesh=debug`.
     #[arg(long, env = "CITYMESH_LOG_LEVEL", default_value = "info")]

@@ -21,7 +21,7 @@ pub struct ErrorBody {
     pub detail: String,
 }
 
-#[derive(Debug, thiserror::Error)]
+#[derive(Debug, Clone, thiserror::Error)]
 pub enum AppError {
     /// The request is malformed: 400.
     #[error("{code}: {detail}")]
@@ -29,6 +29,20 @@ pub enum AppError {
     /// Nothing is served at this address: 404.
     #[error("{code}: {detail}")]
     NotFound { code: &'static str, detail: String },
+    /// The upstream OSM source failed or sent something unusable: 502.
+    #[error("upstream failed: {0}")]
+    UpstreamFailed(String),
+    /// The upstream OSM source is rate limiting or overloaded, or citymesh itself is at its
+    /// limit of concurrent generations: 503 with `Retry-After`.
+    #[error("{detail}")]
+    Unavailable {
+        code: &'static str,
+        detail: String,
+        retry_after_secs: u64,
+    },
+    /// The upstream OSM source did not answer in time: 504.
+    #[error("upstream timed out: {0}")]
+    UpstreamTimeout(String),
     /// A bug or an I/O failure on our side: 500 with a generic message; the cause is logged.
     #[error("internal error: {0}")]
     Internal(String),
@@ -54,11 +68,41 @@ impl AppError {
     }
 }
 
+/// How long clients should wait after an upstream failure or timeout before asking again.
+const UPSTREAM_RETRY_AFTER_SECS: u64 = 30;
+
 impl IntoResponse for AppError {
     fn into_response(self) -> Response {
+        let mut retry_after = None;
         let (status, code, detail) = match self {
             AppError::BadRequest { code, detail } => (StatusCode::BAD_REQUEST, code, detail),
             AppError::NotFound { code, detail } => (StatusCode::NOT_FOUND, code, detail),
+            AppError::UpstreamFailed(cause) => {
+                tracing::warn!(%cause, "upstream failed");
+                retry_after = Some(UPSTREAM_RETRY_AFTER_SECS);
+                (
+                    StatusCode::BAD_GATEWAY,
+                    "upstream_failed",
+                    format!("the OpenStreetMap source (Overpass) failed: {cause}; nothing was stored, try again later"),
+                )
+            }
+            AppError::Unavailable {
+                code,
+                detail,
+                retry_after_secs,
+            } => {
+                retry_after = Some(retry_after_secs);
+                (StatusCode::SERVICE_UNAVAILABLE, code, detail)
+            }
+            AppError::UpstreamTimeout(cause) => {
+                tracing::warn!(%cause, "upstream timed out");
+                retry_after = Some(UPSTREAM_RETRY_AFTER_SECS);
+                (
+                    StatusCode::GATEWAY_TIMEOUT,
+                    "upstream_timeout",
+                    format!("the OpenStreetMap source (Overpass) did not answer in time ({cause}); try again later"),
+                )
+            }
             AppError::Internal(cause) => {
                 tracing::error!(%cause, "request failed");
                 (
@@ -69,14 +113,35 @@ impl IntoResponse for AppError {
                 )
             }
         };
-        (
+        let mut response = (
             status,
             Json(ErrorBody {
                 error: code.to_owned(),
                 detail,
             }),
         )
-            .into_response()
+            .into_response();
+        if let Some(secs) = retry_after
+            && let Ok(v) = axum::http::HeaderValue::from_str(&secs.to_string())
+        {
+            response.headers_mut().insert(axum::http::header::RETRY_AFTER, v);
+        }
+        response
+    }
+}
+
+impl From<crate::upstream::OverpassError> for AppError {
+    fn from(e: crate::upstream::OverpassError) -> Self {
+        use crate::upstream::OverpassError;
+        match e {
+            OverpassError::Busy { retry_after, .. } => AppError::Unavailable {
+                code: "upstream_busy",
+                detail: format!("{e}; nothing was stored, try again after the Retry-After delay"),
+                retry_after_secs: retry_after.map_or(UPSTREAM_RETRY_AFTER_SECS, |d| d.as_secs().max(1)),
+            },
+            OverpassError::Timeout(_) => AppError::UpstreamTimeout(e.to_string()),
+            OverpassError::Bad(m) => AppError::UpstreamFailed(m),
+        }
     }
 }
 

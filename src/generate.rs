@@ -39,24 +39,41 @@ pub struct GenerationStats {
     /// 1x1 degree areas without a DEM file, where the ground is the flat 0 m fallback.
     pub missing_dem: Vec<String>,
     pub buildings: BuildingStats,
+    /// Where the buildings came from: `files`, `stored`, or the data tiles missing offline.
+    pub osm: String,
 }
 
-/// Generates an area as GLB bytes.
+/// Generates an area as GLB bytes: gathers its buildings (which may ask upstream), then waits for
+/// a generation slot (503 when none frees up in time) and generates on the blocking pool.
 pub async fn generate(state: &AppState, area: Area) -> Result<Generated, AppError> {
+    let data_area = match area {
+        Area::Scene(b) => b,
+        Area::Tile(t) => t.bounds(),
+    };
+    let buildings = state.osm.area(&data_area).await?;
+    let _slot = tokio::time::timeout(
+        state.limits.generation_wait,
+        state.generations.clone().acquire_owned(),
+    )
+    .await
+    .map_err(|_| AppError::Unavailable {
+        code: "busy",
+        detail: "every generation slot is busy: try again in a moment (cached tiles are still served)"
+            .to_owned(),
+        retry_after_secs: 1,
+    })?
+    .map_err(AppError::internal)?;
     let dem = state.dem.clone();
-    let osm = state.osm.clone();
     let generated = tokio::task::spawn_blocking(move || {
         let started = Instant::now();
+        let set = &buildings.set;
         let (bbox, clusters, border) = match area {
-            Area::Scene(b) => (b, osm.set.clusters_intersecting(&b), Border::Truncate),
-            Area::Tile(t) => (t.bounds(), osm.set.clusters_of_tile(&t), Border::Whole),
+            Area::Scene(b) => (b, set.clusters_intersecting(&b), Border::Truncate),
+            Area::Tile(t) => (t.bounds(), set.clusters_of_tile(&t), Border::Whole),
         };
         // Whole buildings may reach past the box: their ground must be loaded too.
         let lookup = dem.lookup(&extent_with(&bbox, &clusters));
-        let groups: Vec<_> = clusters
-            .iter()
-            .map(|c| osm.set.cluster_records(c))
-            .collect();
+        let groups: Vec<_> = clusters.iter().map(|c| set.cluster_records(c)).collect();
         let scene = Scene::new(&lookup.model, &bbox, &groups, border);
         let glb = scene.to_glb();
         let stats = GenerationStats {
@@ -66,6 +83,7 @@ pub async fn generate(state: &AppState, area: Area) -> Result<Generated, AppErro
             ground: scene.ground,
             missing_dem: lookup.missing,
             buildings: scene.buildings,
+            osm: buildings.origin,
         };
         Generated {
             glb: Bytes::from(glb),
@@ -73,12 +91,12 @@ pub async fn generate(state: &AppState, area: Area) -> Result<Generated, AppErro
         }
     })
     .await?;
-    tracing::debug!(
-        ?area,
-        ms = generated.stats.generation_ms,
-        bytes = generated.glb.len(),
-        "generated"
-    );
+    state.metrics.generations.inc();
+    state
+        .metrics
+        .generation_seconds
+        .observe(generated.stats.generation_ms / 1e3);
+    tracing::debug!(?area, ms = generated.stats.generation_ms, bytes = generated.glb.len(), "generated");
     Ok(generated)
 }
 
@@ -108,6 +126,7 @@ pub fn glb_headers(stats: Option<&GenerationStats>) -> HeaderMap {
         format!("flat-fallback; missing={}", s.missing_dem.join(","))
     };
     put("x-citymesh-ground", ground);
+    put("x-citymesh-osm", s.osm.clone());
     let b = &s.buildings;
     put("x-citymesh-buildings", b.generated.to_string());
     let skipped = if b.skipped.is_empty() {

@@ -12,10 +12,13 @@ pub mod db;
 pub mod dem;
 pub mod error;
 pub mod generate;
+pub mod metrics;
 pub mod osm;
 pub mod routes;
 pub mod server;
 pub mod state;
+pub mod tile_cache;
+pub mod upstream;
 
 pub use error::AppError;
 pub use routes::app;

@@ -12,5 +12,18 @@ async fn main() -> anyhow::Result<()> {
             println!("{}", citymesh::routes::openapi_json());
             Ok(())
         }
+        Command::Import(args) => {
+            let report = citymesh::osm::import::import(&args.files, &args.cache_db, args.quiet).await?;
+            println!(
+                "imported {} buildings ({} skipped) into {} data tiles ({} changed; {} generated tiles dropped) in {}",
+                report.buildings,
+                report.skipped,
+                report.data_tiles,
+                report.changed_data_tiles,
+                report.tiles_invalidated,
+                args.cache_db
+            );
+            Ok(())
+        }
     }
 }

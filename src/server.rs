@@ -4,11 +4,16 @@
 use crate::cli::ServeArgs;
 use crate::db::{self, TileStore};
 use crate::dem::DemStore;
-use crate::osm::load_osm_files;
+use crate::metrics::Metrics;
+use crate::osm::{DataTileSource, OsmSource, OsmTileStore, load_osm_files};
 use crate::state::{AppState, Limits};
+use crate::tile_cache::TileCache;
+use crate::upstream::{OverpassClient, OverpassConfig};
 use anyhow::Context;
 use std::io::IsTerminal;
 use std::sync::Arc;
+use std::time::Duration;
+use tokio::sync::Semaphore;
 use tracing_subscriber::EnvFilter;
 
 /// Builds the state a server with these options runs on.
@@ -25,30 +30,85 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         args.max_zoom
     );
     anyhow::ensure!(args.max_bbox_km2 > 0.0, "--max-bbox-km2 must be positive");
+    anyhow::ensure!(
+        args.overpass_timeout_s > 0.0 && args.overpass_timeout_s.is_finite(),
+        "--overpass-timeout-s must be a positive number of seconds"
+    );
+    anyhow::ensure!(
+        !args.overpass_url.is_empty(),
+        "--overpass-url needs at least one endpoint"
+    );
     let pool = db::open(&args.cache_db)
         .await
         .with_context(|| format!("opening the cache database {}", args.cache_db))?;
     let dem_dir = args.dem_dir.clone();
     let cache_bytes = args.dem_cache_mb.saturating_mul(1 << 20);
     let dem = tokio::task::spawn_blocking(move || DemStore::open(&dem_dir, cache_bytes)).await?;
-    let osm_files = args.osm.clone();
-    let osm = tokio::task::spawn_blocking(move || load_osm_files(&osm_files)).await??;
-    if !args.osm.is_empty() {
+    let metrics = Arc::new(Metrics::default());
+    let files = if args.osm.is_empty() {
+        None
+    } else {
+        let osm_files = args.osm.clone();
+        let data = tokio::task::spawn_blocking(move || load_osm_files(&osm_files)).await??;
         tracing::info!(
-            buildings = osm.set.records().len(),
-            clusters = osm.set.clusters().len(),
-            skipped = osm.skipped_at_load,
+            buildings = data.set.records().len(),
+            clusters = data.set.clusters().len(),
+            skipped = data.skipped_at_load,
             "OSM buildings indexed"
         );
-    }
+        Some(data)
+    };
+    let variant = format!(
+        "{}-{}-{}",
+        env!("CARGO_PKG_VERSION"),
+        dem.fingerprint(),
+        files.as_ref().map_or("tiles", |f| f.fingerprint.as_str())
+    );
+    let tiles = Arc::new(TileCache::new(
+        TileStore::new(pool.clone()),
+        args.tile_cache_mb.saturating_mul(1 << 20),
+        variant,
+        (args.min_zoom, args.max_zoom),
+        metrics.clone(),
+    ));
+    let osm = match files {
+        Some(data) => OsmSource::Files(data),
+        None => {
+            let upstream = if args.offline {
+                None
+            } else {
+                Some(Arc::new(OverpassClient::new(OverpassConfig {
+                    urls: args.overpass_url.clone(),
+                    timeout: Duration::from_secs_f64(args.overpass_timeout_s),
+                    retries: args.overpass_retries,
+                    backoff: Duration::from_secs(1),
+                    max_concurrent: args.overpass_max_concurrent,
+                })?))
+            };
+            OsmSource::Tiles(DataTileSource::new(
+                OsmTileStore::new(pool),
+                upstream,
+                (args.osm_ttl_hours * 3600.0) as i64,
+                metrics.clone(),
+                tiles.clone(),
+            ))
+        }
+    };
+    let slots = args
+        .max_generations
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(2, |n| n.get()))
+        .max(1);
     Ok(AppState {
         dem: Arc::new(dem),
         osm: Arc::new(osm),
-        tiles: TileStore::new(pool),
+        tiles,
+        metrics,
+        generations: Arc::new(Semaphore::new(slots)),
         limits: Limits {
             max_bbox_km2: args.max_bbox_km2,
             min_zoom: args.min_zoom,
             max_zoom: args.max_zoom,
+            generation_wait: Duration::from_millis(args.generation_wait_ms),
         },
     })
 }

@@ -1,9 +1,13 @@
-//! Shared server state: the DEM store, the OSM buildings, the tile cache and the limits, cheap to clone per request.
+//! Shared server state: the DEM store, the OSM source, the tile cache, the metrics and the limits,
+//! cheap to clone per request.
 
-use crate::db::TileStore;
 use crate::dem::DemStore;
-use crate::osm::OsmData;
+use crate::metrics::Metrics;
+use crate::osm::OsmSource;
+use crate::tile_cache::TileCache;
 use std::sync::Arc;
+use std::time::Duration;
+use tokio::sync::Semaphore;
 
 /// Limits that protect the server from requests it should refuse.
 #[derive(Debug, Clone, Copy)]
@@ -11,12 +15,18 @@ pub struct Limits {
     pub max_bbox_km2: f64,
     pub min_zoom: u8,
     pub max_zoom: u8,
+    /// How long a request waits for a free generation slot before a 503.
+    pub generation_wait: Duration,
 }
 
 #[derive(Clone)]
 pub struct AppState {
     pub dem: Arc<DemStore>,
-    pub osm: Arc<OsmData>,
-    pub tiles: TileStore,
+    pub osm: Arc<OsmSource>,
+    pub tiles: Arc<TileCache>,
+    pub metrics: Arc<Metrics>,
+    /// Generations running at once at most: a burst of cold tiles cannot starve cached ones,
+    /// which never wait for a slot.
+    pub generations: Arc<Semaphore>,
     pub limits: Limits,
 }

@@ -26,7 +26,7 @@ fn http_get(addr: &str, path: &str) -> (String, Vec<u8>) {
 fn serve_answers_and_shuts_down_gracefully_on_sigterm() {
     let db = tempfile::tempdir().unwrap();
     let mut child = Command::new(env!("CARGO_BIN_EXE_citymesh"))
-        .args(["serve", "--listen", "127.0.0.1:0", "--dem-dir"])
+        .args(["serve", "--offline", "--listen", "127.0.0.1:0", "--dem-dir"])
         .arg(common::dem_dir())
         .arg("--cache-db")
         .arg(db.path().join("c.sqlite"))

@@ -76,7 +76,7 @@ async fn tiles_are_cached_in_sqlite_across_restarts() {
     // A new server on the same database: served from SQLite, byte for byte.
     let app = app_with(&dem_dir(), &db_file, &[]).await;
     let again = get(&app, uri).await;
-    assert_eq!(again.header("x-citymesh-cache"), "hit");
+    assert_eq!(again.header("x-citymesh-cache"), "sqlite");
     assert_eq!(again.body, first);
     assert_valid_glb(&first);
     // HEAD answers like GET, without a body.

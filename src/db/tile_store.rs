@@ -54,6 +54,25 @@ impl TileStore {
         Ok(())
     }
 
+    /// Deletes the tiles in each `(z, x0, x1, y0, y1)` range (inclusive), of any variant.
+    pub async fn delete_ranges(&self, ranges: &[(u8, u32, u32, u32, u32)]) -> Result<u64, sqlx::Error> {
+        let mut removed = 0;
+        for &(z, x0, x1, y0, y1) in ranges {
+            removed += sqlx::query(
+                "DELETE FROM generated_tiles WHERE z = ? AND x BETWEEN ? AND ? AND y BETWEEN ? AND ?",
+            )
+            .bind(i64::from(z))
+            .bind(i64::from(x0))
+            .bind(i64::from(x1))
+            .bind(i64::from(y0))
+            .bind(i64::from(y1))
+            .execute(&self.pool)
+            .await?
+            .rows_affected();
+        }
+        Ok(removed)
+    }
+
     /// Number of stored tiles.
     pub async fn count(&self) -> Result<i64, sqlx::Error> {
         sqlx::query("SELECT COUNT(*) FROM generated_tiles")

@@ -6,6 +6,7 @@ use std::collections::HashSet;
 use std::hash::{DefaultHasher, Hash, Hasher};
 use std::io::Read;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// Why an OSM file could not be used. Start-up stops with this message.
 #[derive(Debug, thiserror::Error)]
@@ -22,7 +23,7 @@ pub enum OsmFileError {
 /// The buildings of all `--osm` files.
 #[derive(Debug, Default)]
 pub struct OsmData {
-    pub set: BuildingSet,
+    pub set: Arc<BuildingSet>,
     /// Buildings that could not be assembled from the files (missing nodes, unclosed rings...).
     pub skipped_at_load: usize,
     /// Changes whenever the files change, so cached tiles built from old data are not reused.
@@ -32,7 +33,8 @@ pub struct OsmData {
 /// Largest decompressed OSM file accepted (4 GiB): guards against gzip bombs.
 const MAX_OSM_BYTES: u64 = 4 << 30;
 
-fn read_bytes(path: &Path) -> Result<Vec<u8>, OsmFileError> {
+/// The bytes of an OSM file, gunzipped when it is gzip.
+pub fn read_osm_file(path: &Path) -> Result<Vec<u8>, OsmFileError> {
     let io = |source| OsmFileError::Io {
         path: path.display().to_string(),
         source,
@@ -60,7 +62,7 @@ pub fn load_osm_files(paths: &[PathBuf]) -> Result<OsmData, OsmFileError> {
     let mut skipped = 0;
     let mut h = DefaultHasher::new();
     for path in paths {
-        let bytes = read_bytes(path)?;
+        let bytes = read_osm_file(path)?;
         bytes.len().hash(&mut h);
         path.hash(&mut h);
         if let Ok(modified) = std::fs::metadata(path).and_then(|m| m.modified()) {
@@ -84,7 +86,7 @@ pub fn load_osm_files(paths: &[PathBuf]) -> Result<OsmData, OsmFileError> {
         }
     }
     Ok(OsmData {
-        set: BuildingSet::new(records),
+        set: Arc::new(BuildingSet::new(records)),
         skipped_at_load: skipped,
         fingerprint: format!("{:016x}", h.finish()),
     })

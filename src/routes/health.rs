@@ -15,7 +15,7 @@ pub struct Health {
     pub version: &'static str,
     /// Number of SRTM files in the DEM directory.
     pub dem_files: usize,
-    /// Buildings and building parts loaded from `--osm` files.
+    /// Buildings and building parts loaded from `--osm` files, or OSM data tiles held in memory.
     pub buildings: usize,
 }
 
@@ -27,6 +27,6 @@ pub async fn health(State(state): State<AppState>) -> Json<Health> {
         status: "ok",
         version: env!("CARGO_PKG_VERSION"),
         dem_files: state.dem.file_count(),
-        buildings: state.osm.set.records().len(),
+        buildings: state.osm.summary(),
     })
 }

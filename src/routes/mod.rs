@@ -1,8 +1,10 @@
 //! The HTTP surface: one file per resource, all thin. Handlers check their input, ask the
 //! generator or a cache, and shape the response; they never compute geometry themselves.
 
+mod conditional;
 mod health;
 mod index;
+mod metrics;
 mod scene;
 mod scene_stats;
 mod tiles;
@@ -11,6 +13,10 @@ use crate::error::{AppError, ErrorBody};
 use crate::state::AppState;
 use axum::Router;
 use axum::routing::get;
+use axum::http::Method;
+use tower_http::compression::CompressionLayer;
+use tower_http::compression::predicate::{NotForContentType, Predicate, SizeAbove};
+use tower_http::cors::{Any, CorsLayer};
 use tower_http::trace::TraceLayer;
 use utoipa::OpenApi;
 use utoipa_swagger_ui::SwaggerUi;
@@ -41,14 +47,35 @@ pub fn openapi_json() -> String {
 
 /// The whole application, ready to serve or to call in tests with `oneshot`.
 pub fn app(state: AppState) -> Router {
+    // Browsers on other origins (CesiumJS and three.js apps) may fetch everything and read the
+    // figures and validators.
+    let cors = CorsLayer::new()
+        .allow_origin(Any)
+        .allow_methods([Method::GET, Method::HEAD, Method::OPTIONS])
+        .allow_headers(Any)
+        .expose_headers(Any);
+    // JSON and text compress well; GLB is binary floats and goes out as it is (compressing it on
+    // every cached request would cost more CPU than it saves).
+    let compression = CompressionLayer::new().compress_when(
+        SizeAbove::new(256)
+            .and(NotForContentType::const_new("model/gltf-binary"))
+            .and(NotForContentType::IMAGES),
+    );
     Router::new()
         .route("/", get(index::index))
         .route("/health", get(health::health))
+        .route("/metrics", get(metrics::metrics))
         .route("/scene.glb", get(scene::scene_glb))
         .route("/scene/stats", get(scene_stats::scene_stats))
         .route("/tiles/{z}/{x}/{y}", get(tiles::tile_glb))
         .merge(SwaggerUi::new("/docs").url("/openapi.json", ApiDoc::openapi()))
         .fallback(not_found)
+        .layer(axum::middleware::from_fn_with_state(
+            state.clone(),
+            metrics::track,
+        ))
+        .layer(compression)
+        .layer(cors)
         .layer(TraceLayer::new_for_http())
         .with_state(state)
 }

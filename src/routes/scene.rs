@@ -5,7 +5,10 @@ use crate::generate::{Area, generate, glb_headers};
 use crate::state::AppState;
 use axum::extract::rejection::QueryRejection;
 use axum::extract::{Query, State};
-use axum::response::{IntoResponse, Response};
+use axum::http::HeaderMap;
+use axum::response::Response;
+use super::conditional::glb_response;
+use crate::tile_cache::etag_of;
 use citymesh_core::geo::GeoBbox;
 use serde::Deserialize;
 use utoipa::IntoParams;
@@ -35,21 +38,35 @@ pub struct SceneQuery {
                 ("X-Citymesh-Triangles" = u64, description = "Triangles of the generated mesh"),
                 ("X-Citymesh-Void-Cells" = u64, description = "Ground cells left empty by DEM voids"),
                 ("X-Citymesh-Ground" = String, description = "`dem`, or `flat-fallback; missing=N49E008,...`"),
+                ("X-Citymesh-Osm" = String, description = "Where the buildings came from: `files`, `stored`, or `missing=14/x/y (offline: no buildings there)`"),
+                ("ETag" = String, description = "Strong validator of the bytes"),
                 ("X-Citymesh-Buildings" = u64, description = "Buildings and building parts generated"),
                 ("X-Citymesh-Buildings-Skipped" = String, description = "`0`, or the count and reasons, e.g. `2; self_intersecting=2`"),
                 ("X-Citymesh-Flat-Roofs-Percent" = f64, description = "Share of flat roofs (paper Tables 2 and 3)"),
                 ("X-Citymesh-Roof-Shapes-From-Tags-Percent" = f64, description = "Share of roof shapes taken from `roof:shape` tags rather than defaults"),
             )),
+        (status = 304, description = "Not modified: the If-None-Match ETag is current"),
         (status = 400, description = "The bbox is missing, malformed, inverted, out of range or too large", body = ErrorBody),
+        (status = 502, description = "Overpass failed or sent an incomplete answer; nothing was stored", body = ErrorBody),
+        (status = 503, description = "Overpass is rate limiting, or every generation slot is busy; see Retry-After", body = ErrorBody),
+        (status = 504, description = "Overpass did not answer in time", body = ErrorBody),
     ))]
 pub async fn scene_glb(
     State(state): State<AppState>,
+    request_headers: HeaderMap,
     query: Result<Query<SceneQuery>, QueryRejection>,
 ) -> Result<Response, AppError> {
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
     let bbox = parse_bbox(query.bbox.as_deref(), state.limits.max_bbox_km2)?;
     let generated = generate(&state, Area::Scene(bbox)).await?;
-    Ok((glb_headers(Some(&generated.stats)), generated.glb).into_response())
+    let etag = etag_of(&generated.glb);
+    Ok(glb_response(
+        &request_headers,
+        generated.glb,
+        etag,
+        glb_headers(Some(&generated.stats)),
+        "public, max-age=300",
+    ))
 }
 
 /// Checks a `bbox` parameter against the format and the area limit.

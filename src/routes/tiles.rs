@@ -1,13 +1,13 @@
 //! `GET /tiles/{z}/{x}/{y}.glb`: Web Mercator XYZ tiles, kept in the SQLite tile cache.
 
-use crate::db::TileKey;
+use super::conditional::glb_response;
 use crate::error::{AppError, ErrorBody};
 use crate::generate::{Area, generate, glb_headers};
 use crate::state::AppState;
 use axum::extract::rejection::PathRejection;
 use axum::extract::{Path, State};
-use axum::http::{HeaderName, HeaderValue};
-use axum::response::{IntoResponse, Response};
+use axum::http::{HeaderMap, HeaderName, HeaderValue};
+use axum::response::Response;
 use citymesh_core::geo::TileCoord;
 
 /// One XYZ tile as binary glTF.
@@ -26,12 +26,21 @@ use citymesh_core::geo::TileCoord;
     ),
     responses(
         (status = 200, description = "The tile", content_type = "model/gltf-binary", body = Vec<u8>,
-            headers(("X-Citymesh-Cache" = String, description = "`hit` when served from the tile cache, else `miss`"))),
+            headers(
+                ("X-Citymesh-Cache" = String, description = "`hit` (memory), `sqlite` (the on-disk cache) or `miss` (generated now)"),
+                ("ETag" = String, description = "Strong validator of the bytes; send it back in If-None-Match"),
+                ("Cache-Control" = String, description = "`public, max-age=3600`"),
+            )),
+        (status = 304, description = "Not modified: the If-None-Match ETag is current"),
         (status = 400, description = "z, x or y is not a number or out of range", body = ErrorBody),
         (status = 404, description = "The zoom level is not served, or the format is not .glb", body = ErrorBody),
+        (status = 502, description = "Overpass failed or sent an incomplete answer; nothing was stored", body = ErrorBody),
+        (status = 503, description = "Overpass is rate limiting, or every generation slot is busy; see Retry-After", body = ErrorBody),
+        (status = 504, description = "Overpass did not answer in time", body = ErrorBody),
     ))]
 pub async fn tile_glb(
     State(state): State<AppState>,
+    request_headers: HeaderMap,
     path: Result<Path<(String, String, String)>, PathRejection>,
 ) -> Result<Response, AppError> {
     let Path((z, x, y)) = path.map_err(|e| AppError::bad_request("invalid_tile", e.body_text()))?;
@@ -46,34 +55,30 @@ pub async fn tile_glb(
             ),
         ));
     }
-    let key = TileKey {
-        z: tile.z,
-        x: tile.x,
-        y: tile.y,
-        variant: format!(
-            "{}-{}-{}",
-            env!("CARGO_PKG_VERSION"),
-            state.dem.fingerprint(),
-            state.osm.fingerprint
-        ),
-    };
-    if let Some(glb) = state.tiles.get(&key).await? {
-        let mut headers = glb_headers(None);
-        headers.insert(
-            HeaderName::from_static("x-citymesh-cache"),
-            HeaderValue::from_static("hit"),
-        );
-        return Ok((headers, glb).into_response());
-    }
-    let generated = generate(&state, Area::Tile(tile)).await?;
-    state.tiles.put(&key, &generated.glb).await?;
-    let mut headers = glb_headers(Some(&generated.stats));
+    let (cached, level) = state
+        .tiles
+        .get_or_generate(tile, || async {
+            let g = generate(&state, Area::Tile(tile)).await?;
+            Ok((g.glb, g.stats))
+        })
+        .await?;
+    let mut headers = glb_headers(cached.generated.as_deref());
     headers.insert(
         HeaderName::from_static("x-citymesh-cache"),
-        HeaderValue::from_static("miss"),
+        HeaderValue::from_static(level.header()),
     );
-    Ok((headers, generated.glb).into_response())
+    Ok(glb_response(
+        &request_headers,
+        cached.glb,
+        cached.etag,
+        headers,
+        TILE_CACHE_CONTROL,
+    ))
 }
+
+/// Tiles change only when their data does: clients may keep them an hour, then revalidate with
+/// the ETag.
+const TILE_CACHE_CONTROL: &str = "public, max-age=3600";
 
 fn parse_tile(z: &str, x: &str, y: &str) -> Result<TileCoord, AppError> {
     let Some(y) = y.strip_suffix(".glb") else {

@@ -52,6 +52,10 @@ pub async fn app_with(dem: &Path, db: &Path, extra: &[&str]) -> axum::Router {
         "--cache-db",
         db.to_str().unwrap(),
     ];
+    // Tests never reach the internet: without local OSM files or a stub upstream, no upstream.
+    if !extra.iter().any(|a| *a == "--osm" || *a == "--overpass-url") {
+        argv.push("--offline");
+    }
     argv.extend_from_slice(extra);
     let args = ServeArgs::parse_from(argv);
     citymesh::app(citymesh::server::build_state(&args).await.unwrap())

@@ -7,4 +7,4 @@ mod tile;
 
 pub use bbox::{BboxError, GeoBbox, MAX_MERCATOR_LAT};
 pub use local_frame::{LocalFrame, WGS84_A, WGS84_E2};
-pub use tile::{TileCoord, TileError};
+pub use tile::{MAX_ZOOM, TileCoord, TileError};

@@ -9,12 +9,14 @@ mod assemble;
 mod overpass_json;
 mod pbf;
 mod raw;
+mod write;
 mod xml;
 
 pub use assemble::{
     BuildingRecord, OsmBuildings, OsmId, Ring, RingNode, SkipReason, Skipped, assemble,
 };
 pub use raw::{Member, MemberKind, RawOsm, RawRelation, RawWay, Tags};
+pub use write::write_overpass_json;
 
 /// The OSM formats citymesh reads.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

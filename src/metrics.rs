@@ -1,0 +1,122 @@
+//! Prometheus metrics, served at `/metrics` in the text exposition format: requests by route and
+//! status, request latency, cache hits and misses per level, upstream calls and errors, and
+//! generation time.
+
+use prometheus_client::encoding::EncodeLabelSet;
+use prometheus_client::metrics::counter::Counter;
+use prometheus_client::metrics::family::Family;
+use prometheus_client::metrics::histogram::Histogram;
+use prometheus_client::registry::Registry;
+
+#[derive(Clone, Debug, Hash, PartialEq, Eq, EncodeLabelSet)]
+pub struct RequestLabels {
+    pub route: String,
+    pub status: u16,
+}
+
+#[derive(Clone, Debug, Hash, PartialEq, Eq, EncodeLabelSet)]
+pub struct RouteLabels {
+    pub route: String,
+}
+
+#[derive(Clone, Debug, Hash, PartialEq, Eq, EncodeLabelSet)]
+pub struct CacheLabels {
+    /// `memory` (generated tiles in RAM), `sqlite` (generated tiles on disk), `osm_memory`
+    /// (parsed OSM data tiles), `osm_sqlite` (stored OSM data tiles).
+    pub level: &'static str,
+    /// `hit` or `miss`.
+    pub result: &'static str,
+}
+
+#[derive(Clone, Debug, Hash, PartialEq, Eq, EncodeLabelSet)]
+pub struct UpstreamLabels {
+    /// `ok`, `busy`, `timeout` or `bad_response`.
+    pub result: &'static str,
+}
+
+/// Every metric citymesh keeps.
+pub struct Metrics {
+    registry: Registry,
+    pub requests: Family<RequestLabels, Counter>,
+    pub latency: Family<RouteLabels, Histogram>,
+    pub cache: Family<CacheLabels, Counter>,
+    pub upstream: Family<UpstreamLabels, Counter>,
+    pub generations: Counter,
+    pub generation_seconds: Histogram,
+}
+
+fn latency_buckets() -> impl Iterator<Item = f64> {
+    [
+        0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 30.0,
+    ]
+    .into_iter()
+}
+
+impl Default for Metrics {
+    fn default() -> Self {
+        let mut registry = Registry::with_prefix("citymesh");
+        let requests = Family::<RequestLabels, Counter>::default();
+        let latency =
+            Family::<RouteLabels, Histogram>::new_with_constructor(|| Histogram::new(latency_buckets()));
+        let cache = Family::<CacheLabels, Counter>::default();
+        let upstream = Family::<UpstreamLabels, Counter>::default();
+        let generations = Counter::default();
+        let generation_seconds = Histogram::new(latency_buckets());
+        registry.register(
+            "http_requests",
+            "HTTP requests by route and status",
+            requests.clone(),
+        );
+        registry.register(
+            "http_request_duration_seconds",
+            "Time to answer an HTTP request, by route",
+            latency.clone(),
+        );
+        registry.register(
+            "cache_requests",
+            "Cache lookups by level (memory, sqlite, osm_memory, osm_sqlite) and result",
+            cache.clone(),
+        );
+        registry.register(
+            "upstream_requests",
+            "Overpass requests by result (ok, busy, timeout, bad_response)",
+            upstream.clone(),
+        );
+        registry.register("generations", "Meshes generated", generations.clone());
+        registry.register(
+            "generation_duration_seconds",
+            "Time to generate a mesh and its GLB",
+            generation_seconds.clone(),
+        );
+        Self {
+            registry,
+            requests,
+            latency,
+            cache,
+            upstream,
+            generations,
+            generation_seconds,
+        }
+    }
+}
+
+impl Metrics {
+    /// Counts a cache lookup.
+    pub fn cache(&self, level: &'static str, hit: bool) {
+        self.cache
+            .get_or_create(&CacheLabels {
+                level,
+                result: if hit { "hit" } else { "miss" },
+            })
+            .inc();
+    }
+
+    /// The text exposition format.
+    pub fn render(&self) -> String {
+        let mut out = String::new();
+        if prometheus_client::encoding::text::encode(&mut out, &self.registry).is_err() {
+            tracing::error!("metrics could not be encoded");
+        }
+        out
+    }
+}

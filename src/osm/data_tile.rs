@@ -1,0 +1,65 @@
+//! Data tiles: OSM data is fetched and stored per Web Mercator tile of one fixed zoom.
+//!
+//! Zoom 14: a data tile is about 2.4 km across at the equator and 1.6 km at 49° N. One Overpass
+//! query for it returns a few thousand buildings in a dense city (a few MB of JSON, seconds of
+//! Overpass time, well inside its default limits), while every served tile from zoom 14 up lies
+//! in one data tile (and its neighbours where buildings reach over the edge). Coarser data tiles
+//! would make single queries slow and heavy; finer ones would multiply queries for a city view.
+
+use citymesh_core::geo::{GeoBbox, TileCoord};
+
+/// The zoom of data tiles.
+pub const DATA_ZOOM: u8 = 14;
+
+/// How far (degrees, about 200 m) around an area data is loaded, so buildings and groups of
+/// buildings reaching over a tile edge are complete.
+pub const MARGIN_DEGREES: f64 = 0.002;
+
+/// The data tiles an area needs, with the margin.
+pub fn data_tiles_for(bbox: &GeoBbox) -> Vec<TileCoord> {
+    let lo_lat = (bbox.min_lat() - MARGIN_DEGREES).max(-85.0);
+    let hi_lat = (bbox.max_lat() + MARGIN_DEGREES).min(85.0);
+    let lo_lon = (bbox.min_lon() - MARGIN_DEGREES).max(-180.0);
+    let hi_lon = (bbox.max_lon() + MARGIN_DEGREES).min(179.999_999);
+    let nw = TileCoord::containing(DATA_ZOOM, lo_lon, hi_lat);
+    let se = TileCoord::containing(DATA_ZOOM, hi_lon, lo_lat);
+    let mut out = Vec::new();
+    for x in nw.x..=se.x {
+        for y in nw.y..=se.y {
+            out.push(TileCoord {
+                z: DATA_ZOOM,
+                x,
+                y,
+            });
+        }
+    }
+    out
+}
+
+/// The area whose served tiles may use a data tile: its bounds grown by the margin.
+pub fn affected_area(data_tile: &TileCoord) -> GeoBbox {
+    let b = data_tile.bounds();
+    GeoBbox::new(
+        (b.min_lon() - MARGIN_DEGREES).max(-180.0),
+        (b.min_lat() - MARGIN_DEGREES).max(-85.0),
+        (b.max_lon() + MARGIN_DEGREES).min(180.0),
+        (b.max_lat() + MARGIN_DEGREES).min(85.0),
+    )
+    .unwrap_or(b)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_tile_inside_a_data_tile_needs_just_that_one() {
+        // A z16 tile in the middle of data tile 14/8573/5621 (Karlsruhe-Neureut).
+        let t = TileCoord::new(16, 34294, 22486).unwrap();
+        let d = data_tiles_for(&t.bounds());
+        assert_eq!(d, vec![TileCoord { z: 14, x: 8573, y: 5621 }]);
+        // One on its corner needs the four around the corner.
+        let corner = TileCoord::new(16, 34292, 22484).unwrap();
+        assert_eq!(data_tiles_for(&corner.bounds()).len(), 4);
+    }
+}
