@@ -83,7 +83,9 @@ impl IntoResponse for AppError {
                 (
                     StatusCode::BAD_GATEWAY,
                     "upstream_failed",
-                    format!("the OpenStreetMap source (Overpass) failed: {cause}; nothing was stored, try again later"),
+                    format!(
+                        "the OpenStreetMap source (Overpass) failed: {cause}; nothing was stored, try again later"
+                    ),
                 )
             }
             AppError::Unavailable {
@@ -100,7 +102,9 @@ impl IntoResponse for AppError {
                 (
                     StatusCode::GATEWAY_TIMEOUT,
                     "upstream_timeout",
-                    format!("the OpenStreetMap source (Overpass) did not answer in time ({cause}); try again later"),
+                    format!(
+                        "the OpenStreetMap source (Overpass) did not answer in time ({cause}); try again later"
+                    ),
                 )
             }
             AppError::Internal(cause) => {
@@ -124,7 +128,9 @@ impl IntoResponse for AppError {
         if let Some(secs) = retry_after
             && let Ok(v) = axum::http::HeaderValue::from_str(&secs.to_string())
         {
-            response.headers_mut().insert(axum::http::header::RETRY_AFTER, v);
+            response
+                .headers_mut()
+                .insert(axum::http::header::RETRY_AFTER, v);
         }
         response
     }
@@ -137,7 +143,8 @@ impl From<crate::upstream::OverpassError> for AppError {
             OverpassError::Busy { retry_after, .. } => AppError::Unavailable {
                 code: "upstream_busy",
                 detail: format!("{e}; nothing was stored, try again after the Retry-After delay"),
-                retry_after_secs: retry_after.map_or(UPSTREAM_RETRY_AFTER_SECS, |d| d.as_secs().max(1)),
+                retry_after_secs: retry_after
+                    .map_or(UPSTREAM_RETRY_AFTER_SECS, |d| d.as_secs().max(1)),
             },
             OverpassError::Timeout(_) => AppError::UpstreamTimeout(e.to_string()),
             OverpassError::Bad(m) => AppError::UpstreamFailed(m),

@@ -58,8 +58,9 @@ pub async fn generate(state: &AppState, area: Area) -> Result<Generated, AppErro
     .await
     .map_err(|_| AppError::Unavailable {
         code: "busy",
-        detail: "every generation slot is busy: try again in a moment (cached tiles are still served)"
-            .to_owned(),
+        detail:
+            "every generation slot is busy: try again in a moment (cached tiles are still served)"
+                .to_owned(),
         retry_after_secs: 1,
     })?
     .map_err(AppError::internal)?;
@@ -96,7 +97,12 @@ pub async fn generate(state: &AppState, area: Area) -> Result<Generated, AppErro
         .metrics
         .generation_seconds
         .observe(generated.stats.generation_ms / 1e3);
-    tracing::debug!(?area, ms = generated.stats.generation_ms, bytes = generated.glb.len(), "generated");
+    tracing::debug!(
+        ?area,
+        ms = generated.stats.generation_ms,
+        bytes = generated.glb.len(),
+        "generated"
+    );
     Ok(generated)
 }
 

@@ -13,7 +13,8 @@ async fn main() -> anyhow::Result<()> {
             Ok(())
         }
         Command::Import(args) => {
-            let report = citymesh::osm::import::import(&args.files, &args.cache_db, args.quiet).await?;
+            let report =
+                citymesh::osm::import::import(&args.files, &args.cache_db, args.quiet).await?;
             println!(
                 "imported {} buildings ({} skipped) into {} data tiles ({} changed; {} generated tiles dropped) in {}",
                 report.buildings,

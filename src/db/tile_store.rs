@@ -55,7 +55,10 @@ impl TileStore {
     }
 
     /// Deletes the tiles in each `(z, x0, x1, y0, y1)` range (inclusive), of any variant.
-    pub async fn delete_ranges(&self, ranges: &[(u8, u32, u32, u32, u32)]) -> Result<u64, sqlx::Error> {
+    pub async fn delete_ranges(
+        &self,
+        ranges: &[(u8, u32, u32, u32, u32)],
+    ) -> Result<u64, sqlx::Error> {
         let mut removed = 0;
         for &(z, x0, x1, y0, y1) in ranges {
             removed += sqlx::query(

@@ -26,11 +26,7 @@ pub fn data_tiles_for(bbox: &GeoBbox) -> Vec<TileCoord> {
     let mut out = Vec::new();
     for x in nw.x..=se.x {
         for y in nw.y..=se.y {
-            out.push(TileCoord {
-                z: DATA_ZOOM,
-                x,
-                y,
-            });
+            out.push(TileCoord { z: DATA_ZOOM, x, y });
         }
     }
     out
@@ -57,7 +53,14 @@ mod tests {
         // A z16 tile in the middle of data tile 14/8573/5621 (Karlsruhe-Neureut).
         let t = TileCoord::new(16, 34294, 22486).unwrap();
         let d = data_tiles_for(&t.bounds());
-        assert_eq!(d, vec![TileCoord { z: 14, x: 8573, y: 5621 }]);
+        assert_eq!(
+            d,
+            vec![TileCoord {
+                z: 14,
+                x: 8573,
+                y: 5621
+            }]
+        );
         // One on its corner needs the four around the corner.
         let corner = TileCoord::new(16, 34292, 22484).unwrap();
         assert_eq!(data_tiles_for(&corner.bounds()).len(), 4);

@@ -41,7 +41,11 @@ fn bar(len: u64, what: &str, quiet: bool) -> ProgressBar {
 }
 
 /// Imports the files into the database at `cache_db`. `quiet` hides the progress bars.
-pub async fn import(files: &[PathBuf], cache_db: &str, quiet: bool) -> anyhow::Result<ImportReport> {
+pub async fn import(
+    files: &[PathBuf],
+    cache_db: &str,
+    quiet: bool,
+) -> anyhow::Result<ImportReport> {
     anyhow::ensure!(!files.is_empty(), "name at least one OSM file to import");
     let pool = db::open(cache_db)
         .await
@@ -87,11 +91,7 @@ pub async fn import(files: &[PathBuf], cache_db: &str, quiet: bool) -> anyhow::R
         for x in nw.x..=se.x {
             for y in nw.y..=se.y {
                 by_tile
-                    .entry(TileCoord {
-                        z: DATA_ZOOM,
-                        x,
-                        y,
-                    })
+                    .entry(TileCoord { z: DATA_ZOOM, x, y })
                     .or_default()
                     .push(i);
             }

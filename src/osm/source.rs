@@ -142,7 +142,10 @@ impl DataTileSource {
         let origin = if missing.is_empty() {
             "stored".to_owned()
         } else {
-            format!("missing={} (offline: no buildings there)", missing.join(","))
+            format!(
+                "missing={} (offline: no buildings there)",
+                missing.join(",")
+            )
         };
         Ok(AreaBuildings { set, origin })
     }
@@ -198,7 +201,8 @@ impl DataTileSource {
         let Some(upstream) = self.upstream.clone() else {
             return;
         };
-        let (store, metrics, tiles) = (self.store.clone(), self.metrics.clone(), self.tiles.clone());
+        let (store, metrics, tiles) =
+            (self.store.clone(), self.metrics.clone(), self.tiles.clone());
         let (parsed, sets) = (self.parsed.clone(), self.sets.clone());
         // The mark is cleared when the task ends, whatever happens.
         let done = RefreshDone(self.refreshing.clone(), t);
@@ -214,7 +218,9 @@ impl DataTileSource {
                         parsed.invalidate(&t).await;
                         let _ = sets.invalidate_entries_if(move |k, _| k.contains(&t));
                         match tiles.invalidate_area(&affected_area(&t)).await {
-                            Ok(n) => tracing::info!(tile = ?t, removed = n, "OSM data changed; tiles invalidated"),
+                            Ok(n) => {
+                                tracing::info!(tile = ?t, removed = n, "OSM data changed; tiles invalidated")
+                            }
                             Err(e) => tracing::error!("cannot invalidate tiles: {e}"),
                         }
                     }

@@ -29,7 +29,10 @@ pub fn glb_response(
     cache_control: &'static str,
 ) -> Response {
     headers.insert(header::ETAG, etag.clone());
-    headers.insert(header::CACHE_CONTROL, HeaderValue::from_static(cache_control));
+    headers.insert(
+        header::CACHE_CONTROL,
+        HeaderValue::from_static(cache_control),
+    );
     if matches(request, &etag) {
         headers.remove(header::CONTENT_TYPE);
         return (StatusCode::NOT_MODIFIED, headers, Body::empty()).into_response();
@@ -46,7 +49,10 @@ mod tests {
         let etag = HeaderValue::from_static("\"abc\"");
         let mut h = HeaderMap::new();
         assert!(!matches(&h, &etag));
-        h.insert(header::IF_NONE_MATCH, HeaderValue::from_static("\"x\", \"abc\""));
+        h.insert(
+            header::IF_NONE_MATCH,
+            HeaderValue::from_static("\"x\", \"abc\""),
+        );
         assert!(matches(&h, &etag));
         h.insert(header::IF_NONE_MATCH, HeaderValue::from_static("*"));
         assert!(matches(&h, &etag));

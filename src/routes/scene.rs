@@ -1,14 +1,14 @@
 //! `GET /scene.glb?bbox=`: the mesh of an area.
 
+use super::conditional::glb_response;
 use crate::error::{AppError, ErrorBody};
 use crate::generate::{Area, generate, glb_headers};
 use crate::state::AppState;
+use crate::tile_cache::etag_of;
 use axum::extract::rejection::QueryRejection;
 use axum::extract::{Query, State};
 use axum::http::HeaderMap;
 use axum::response::Response;
-use super::conditional::glb_response;
-use crate::tile_cache::etag_of;
 use citymesh_core::geo::GeoBbox;
 use serde::Deserialize;
 use utoipa::IntoParams;

@@ -119,8 +119,10 @@ impl OverpassClient {
                 Ok(body) => return Ok(body),
                 Err(e) => e,
             };
-            let retry = matches!(error, OverpassError::Busy { .. } | OverpassError::Timeout(_))
-                || matches!(&error, OverpassError::Bad(m) if m.starts_with("HTTP 5"));
+            let retry = matches!(
+                error,
+                OverpassError::Busy { .. } | OverpassError::Timeout(_)
+            ) || matches!(&error, OverpassError::Bad(m) if m.starts_with("HTTP 5"));
             if !retry || attempt >= self.config.retries {
                 return Err(error);
             }
@@ -219,7 +221,10 @@ mod tests {
     fn truncated_and_failed_answers_are_refused() {
         assert!(check_complete(br#"{"elements": []}"#).is_ok());
         assert!(check_complete(br#"{"elements": [{"type": "node""#).is_err());
-        assert!(check_complete(br#"{"remark": "runtime error: Query timed out", "elements": []}"#).is_err());
+        assert!(
+            check_complete(br#"{"remark": "runtime error: Query timed out", "elements": []}"#)
+                .is_err()
+        );
         assert!(check_complete(b"<html>502 Bad Gateway</html>").is_err());
     }
 }

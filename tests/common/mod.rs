@@ -53,7 +53,10 @@ pub async fn app_with(dem: &Path, db: &Path, extra: &[&str]) -> axum::Router {
         db.to_str().unwrap(),
     ];
     // Tests never reach the internet: without local OSM files or a stub upstream, no upstream.
-    if !extra.iter().any(|a| *a == "--osm" || *a == "--overpass-url") {
+    if !extra
+        .iter()
+        .any(|a| *a == "--osm" || *a == "--overpass-url")
+    {
         argv.push("--offline");
     }
     argv.extend_from_slice(extra);

@@ -68,9 +68,14 @@ impl Scene {
         }
     }
 
-    /// The scene as GLB bytes, with its origin recorded in the file.
+    /// The scene as GLB bytes, with its origin and the OSM ids of its buildings recorded in the
+    /// file.
     pub fn to_glb(&self) -> Vec<u8> {
         let (lon, lat, height) = self.frame.origin();
-        write_glb(&self.mesh, GlbOrigin { lon, lat, height })
+        write_glb(
+            &self.mesh,
+            GlbOrigin { lon, lat, height },
+            &self.buildings.generated_ids,
+        )
     }
 }

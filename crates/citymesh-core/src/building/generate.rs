@@ -140,6 +140,7 @@ pub fn generate_cluster(
         }
         if produced {
             stats.generated += 1;
+            stats.generated_ids.push(p.record.id.to_string());
         }
     }
     let report = mesh_group(&volumes, &roofs, mesh);

@@ -38,6 +38,9 @@ pub struct BuildingStats {
     pub shared_walls: usize,
     /// Roof dividing segments dropped because they crossed another (the roof is still closed).
     pub dropped_constraints: usize,
+    /// The OSM ids (`way/123`) of the generated records, in generation order.
+    #[serde(skip)]
+    pub generated_ids: Vec<String>,
 }
 
 impl BuildingStats {

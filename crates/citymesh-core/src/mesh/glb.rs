@@ -23,7 +23,8 @@ const FLOAT: u32 = 5126;
 const UNSIGNED_BYTE: u32 = 5121;
 
 /// Encodes the mesh as GLB bytes. Degenerate triangles (no area, so no normal) are left out.
-pub fn write_glb(mesh: &Mesh, origin: GlbOrigin) -> Vec<u8> {
+/// `buildings` (OSM ids such as `way/123`) are listed in `scenes[0].extras.buildings`.
+pub fn write_glb(mesh: &Mesh, origin: GlbOrigin, buildings: &[String]) -> Vec<u8> {
     // Keep only triangles with a usable normal, bucketed by material.
     let mut buckets: Vec<Vec<(usize, [f32; 3])>> = vec![Vec::new(); Material::ALL.len()];
     for (t, (&tri, style)) in mesh.triangles.iter().zip(&mesh.styles).enumerate() {
@@ -92,7 +93,8 @@ pub fn write_glb(mesh: &Mesh, origin: GlbOrigin) -> Vec<u8> {
 
     let extras = json!({"origin": {"lon": origin.lon, "lat": origin.lat, "height": origin.height},
         "heightReference": "metres above mean sea level (EGM96 geoid, as SRTM)",
-        "axes": "x = east, y = up, z = -north, metres from the origin (local frame on WGS84)"});
+        "axes": "x = east, y = up, z = -north, metres from the origin (local frame on WGS84)",
+        "buildings": buildings});
     let generator = concat!("citymesh ", env!("CARGO_PKG_VERSION"));
     let document = if vertex_count == 0 {
         json!({"asset": {"version": "2.0", "generator": generator},

@@ -99,16 +99,33 @@ mod tests {
         let way = BuildingRecord {
             id: OsmId::Way(5),
             is_part: false,
-            outers: vec![ring(&[(1, 8.0, 49.0), (2, 8.001, 49.0), (3, 8.001, 49.001)])],
+            outers: vec![ring(&[
+                (1, 8.0, 49.0),
+                (2, 8.001, 49.0),
+                (3, 8.001, 49.001),
+            ])],
             inners: vec![],
             tags: tags.clone(),
         };
         let rel = BuildingRecord {
             id: OsmId::Relation(9),
             is_part: false,
-            outers: vec![ring(&[(10, 8.0, 49.0), (11, 8.01, 49.0), (12, 8.01, 49.01), (13, 8.0, 49.01)])],
-            inners: vec![ring(&[(20, 8.002, 49.002), (21, 8.003, 49.002), (22, 8.003, 49.003)])],
-            tags: [("building".to_owned(), "yes".to_owned()), ("type".to_owned(), "multipolygon".to_owned())].into(),
+            outers: vec![ring(&[
+                (10, 8.0, 49.0),
+                (11, 8.01, 49.0),
+                (12, 8.01, 49.01),
+                (13, 8.0, 49.01),
+            ])],
+            inners: vec![ring(&[
+                (20, 8.002, 49.002),
+                (21, 8.003, 49.002),
+                (22, 8.003, 49.003),
+            ])],
+            tags: [
+                ("building".to_owned(), "yes".to_owned()),
+                ("type".to_owned(), "multipolygon".to_owned()),
+            ]
+            .into(),
         };
         let back = read_buildings(&write_overpass_json(&[&way, &rel])).unwrap();
         assert_eq!(back.skipped, vec![]);
