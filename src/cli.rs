@@ -117,6 +117,10 @@ pub struct ServeArgs {
     #[arg(long, env = "CITYMESH_GENERATION_WAIT_MS", default_value_t = 10_000)]
     pub generation_wait_ms: u64,
 
+    /// Seconds a request may spend gathering data and generating before a 503.
+    #[arg(long, env = "CITYMESH_REQUEST_TIMEOUT_S", default_value_t = 120.0)]
+    pub request_timeout_s: f64,
+
     /// Log filter: error, warn, info, debug, trace, or a tracing directive like `citymesh=debug`.
     #[arg(long, env = "CITYMESH_LOG_LEVEL", default_value = "info")]
     pub log_level: String,

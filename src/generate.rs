@@ -44,8 +44,23 @@ pub struct GenerationStats {
 }
 
 /// Generates an area as GLB bytes: gathers its buildings (which may ask upstream), then waits for
-/// a generation slot (503 when none frees up in time) and generates on the blocking pool.
+/// a generation slot (503 when none frees up in time) and generates on the blocking pool. The
+/// whole takes at most `--request-timeout-s` (503 after that).
 pub async fn generate(state: &AppState, area: Area) -> Result<Generated, AppError> {
+    let limit = state.limits.request_timeout;
+    tokio::time::timeout(limit, generate_within(state, area))
+        .await
+        .map_err(|_| AppError::Unavailable {
+            code: "timeout",
+            detail: format!(
+                "generating this area took longer than {} s; try a smaller area or again later",
+                limit.as_secs_f64()
+            ),
+            retry_after_secs: 5,
+        })?
+}
+
+async fn generate_within(state: &AppState, area: Area) -> Result<Generated, AppError> {
     let data_area = match area {
         Area::Scene(b) => b,
         Area::Tile(t) => t.bounds(),

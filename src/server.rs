@@ -35,6 +35,10 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         "--overpass-timeout-s must be a positive number of seconds"
     );
     anyhow::ensure!(
+        args.request_timeout_s > 0.0 && args.request_timeout_s.is_finite(),
+        "--request-timeout-s must be a positive number of seconds"
+    );
+    anyhow::ensure!(
         !args.overpass_url.is_empty(),
         "--overpass-url needs at least one endpoint"
     );
@@ -109,6 +113,7 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
             min_zoom: args.min_zoom,
             max_zoom: args.max_zoom,
             generation_wait: Duration::from_millis(args.generation_wait_ms),
+            request_timeout: Duration::from_secs_f64(args.request_timeout_s),
         },
     })
 }

@@ -17,6 +17,8 @@ pub struct Limits {
     pub max_zoom: u8,
     /// How long a request waits for a free generation slot before a 503.
     pub generation_wait: Duration,
+    /// How long gathering data and generating may take before a 503.
+    pub request_timeout: Duration,
 }
 
 #[derive(Clone)]
