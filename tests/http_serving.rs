@@ -24,6 +24,8 @@ enum Mode {
     TooManyRequests,
     Hang,
     Truncated,
+    /// Newer data: every other building way of the normal answer is gone.
+    Thinner,
 }
 
 struct Stub {
@@ -166,6 +168,16 @@ async fn interpreter(
         Mode::Truncated => {
             let full = stub.answer(query_box(&query));
             full[..full.len() / 2].to_vec().into_response()
+        }
+        Mode::Thinner => {
+            let mut doc: Value = serde_json::from_slice(&stub.answer(query_box(&query))).unwrap();
+            let mut k = 0;
+            doc["elements"].as_array_mut().unwrap().retain(|e| {
+                let building = e["type"] == "way" && e["tags"].get("building").is_some();
+                k += usize::from(building);
+                !building || k % 2 == 0
+            });
+            serde_json::to_vec(&doc).unwrap().into_response()
         }
     }
 }
@@ -341,6 +353,104 @@ async fn upstream_failures_answer_clearly_store_nothing_and_recover() {
             "citymesh_upstream_requests_total{result=\"busy\"}"
         ),
         1.0
+    );
+}
+
+#[tokio::test]
+async fn stale_data_is_served_while_a_refresh_runs_and_a_change_invalidates_its_tiles() {
+    let stub = Stub::new();
+    let url = start_stub(stub.clone()).await;
+    let db = tempfile::tempdir().unwrap();
+    let file = db.path().join("c.sqlite");
+    // Data goes stale after about a second.
+    let app = app_with(
+        &dem_dir(),
+        &file,
+        &[
+            "--overpass-url",
+            &url,
+            "--overpass-retries",
+            "0",
+            "--osm-ttl-hours",
+            "0.0003",
+        ],
+    )
+    .await;
+    let a = get(&app, TILE).await;
+    let before: usize = a.header("x-citymesh-buildings").parse().unwrap();
+    assert_eq!(stub.count(), 1);
+    stub.set(Mode::Thinner);
+    tokio::time::sleep(std::time::Duration::from_millis(2100)).await;
+    // A new tile of the same data tile: generated from the stale data, and a refresh starts.
+    let b = get(&app, "/tiles/16/34297/22494.glb").await;
+    assert_eq!(b.header("x-citymesh-cache"), "miss");
+    let mut waited = 0;
+    while stub.count() < 2 || get(&app, TILE).await.header("x-citymesh-cache") != "miss" {
+        tokio::time::sleep(std::time::Duration::from_millis(50)).await;
+        waited += 1;
+        assert!(waited < 100, "no refresh after 5 s");
+    }
+    assert_eq!(stub.count(), 2);
+    // The refresh changed the data tile: its tiles were dropped and are generated anew.
+    let after_a = get(&app, TILE).await;
+    assert_eq!(after_a.header("x-citymesh-cache"), "hit");
+    let after: usize = building_ids(&after_a.body).len();
+    assert!(after < before, "{after} buildings after, {before} before");
+    assert_eq!(
+        get(&app, "/tiles/16/34297/22494.glb")
+            .await
+            .header("x-citymesh-cache"),
+        "miss"
+    );
+}
+
+#[tokio::test]
+async fn an_import_that_changes_data_drops_exactly_the_tiles_over_it() {
+    let db = tempfile::tempdir().unwrap();
+    let file = db.path().join("c.sqlite");
+    let pbf = data_dir().join("osm/karlsruhe-kirchfeld.osm.pbf");
+    let import = |p: std::path::PathBuf| {
+        let f = file.clone();
+        async move {
+            citymesh::osm::import::import(&[p], f.to_str().unwrap(), true)
+                .await
+                .unwrap()
+        }
+    };
+    import(pbf.clone()).await;
+    let inside = "/tiles/16/34297/22493.glb";
+    // A tile far from Karlsruhe-Kirchfeld's data tiles.
+    let elsewhere = "/tiles/16/34297/22430.glb";
+    {
+        let app = app_with(&dem_dir(), &file, &["--offline"]).await;
+        assert_eq!(get(&app, inside).await.header("x-citymesh-cache"), "miss");
+        assert_eq!(
+            get(&app, elsewhere).await.header("x-citymesh-cache"),
+            "miss"
+        );
+    }
+    // The same data again changes nothing.
+    let again = import(pbf).await;
+    assert_eq!((again.changed_data_tiles, again.tiles_invalidated), (0, 0));
+    // Other data over the same area (kirchfeld as Overpass JSON with one building less).
+    let mut doc: Value =
+        serde_json::from_slice(&osm_bytes("karlsruhe-kirchfeld.overpass.json")).unwrap();
+    let elements = doc["elements"].as_array_mut().unwrap();
+    let i = elements
+        .iter()
+        .position(|e| e["type"] == "way" && e["tags"].get("building").is_some())
+        .unwrap();
+    elements.remove(i);
+    let changed = db.path().join("changed.json");
+    std::fs::write(&changed, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let report = import(changed).await;
+    assert!(report.changed_data_tiles >= 1);
+    assert!(report.tiles_invalidated >= 1);
+    let app = app_with(&dem_dir(), &file, &["--offline"]).await;
+    assert_eq!(get(&app, inside).await.header("x-citymesh-cache"), "miss");
+    assert_eq!(
+        get(&app, elsewhere).await.header("x-citymesh-cache"),
+        "sqlite"
     );
 }
 

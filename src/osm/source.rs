@@ -66,6 +66,9 @@ struct ParsedDataTile {
     records: Vec<BuildingRecord>,
     /// False when offline and nothing is stored for it.
     present: bool,
+    /// When it was fetched (Unix seconds), for data from Overpass; `None` for imported data,
+    /// which is never refreshed.
+    fetched_at: Option<i64>,
 }
 
 pub struct DataTileSource {
@@ -159,17 +162,16 @@ impl DataTileSource {
                 self.metrics.cache("osm_memory", false);
                 if let Some(stored) = self.store.get(&t).await? {
                     self.metrics.cache("osm_sqlite", true);
-                    let stale = now_secs() - stored.fetched_at > self.ttl_secs;
-                    if stale && stored.source == DataSource::Overpass && self.upstream.is_some() {
-                        self.start_refresh(t);
-                    }
-                    return parse(stored.body).await;
+                    let fetched_at =
+                        (stored.source == DataSource::Overpass).then_some(stored.fetched_at);
+                    return parse(stored.body, fetched_at).await;
                 }
                 self.metrics.cache("osm_sqlite", false);
                 let Some(upstream) = &self.upstream else {
                     return Ok(Arc::new(ParsedDataTile {
                         records: Vec::new(),
                         present: false,
+                        fetched_at: None,
                     }));
                 };
                 let fetched = upstream.fetch_buildings(&t.bounds()).await;
@@ -179,12 +181,19 @@ impl DataTileSource {
                     .inc();
                 let body = fetched?;
                 self.store.put(&t, &body, DataSource::Overpass).await?;
-                parse(body.into()).await
+                parse(body.into(), Some(now_secs())).await
             })
             .await
             .map_err(|e: Arc<AppError>| (*e).clone());
         if !loaded.load(Ordering::Relaxed) {
             self.metrics.cache("osm_memory", true);
+        }
+        // Stale data is served now and refreshed in the background.
+        if let Ok(p) = &result
+            && p.fetched_at.is_some_and(|f| now_secs() - f > self.ttl_secs)
+            && self.upstream.is_some()
+        {
+            self.start_refresh(t);
         }
         result
     }
@@ -214,7 +223,12 @@ impl DataTileSource {
                 .inc();
             match fetched {
                 Ok(body) => match store.put(&t, &body, DataSource::Overpass).await {
-                    Ok(true) => {
+                    Ok(changed) if !changed => {
+                        // Read back with its new fetch time, so it is not stale any more.
+                        parsed.invalidate(&t).await;
+                        tracing::debug!(tile = ?t, "OSM data refreshed, unchanged");
+                    }
+                    Ok(_) => {
                         parsed.invalidate(&t).await;
                         let _ = sets.invalidate_entries_if(move |k, _| k.contains(&t));
                         match tiles.invalidate_area(&affected_area(&t)).await {
@@ -224,7 +238,6 @@ impl DataTileSource {
                             Err(e) => tracing::error!("cannot invalidate tiles: {e}"),
                         }
                     }
-                    Ok(false) => tracing::debug!(tile = ?t, "OSM data refreshed, unchanged"),
                     Err(e) => tracing::error!("cannot store refreshed OSM data: {e}"),
                 },
                 Err(e) => tracing::warn!(tile = ?t, "refresh failed, stale data kept: {e}"),
@@ -245,13 +258,17 @@ impl Drop for RefreshDone {
     }
 }
 
-async fn parse(body: bytes::Bytes) -> Result<Arc<ParsedDataTile>, AppError> {
+async fn parse(
+    body: bytes::Bytes,
+    fetched_at: Option<i64>,
+) -> Result<Arc<ParsedDataTile>, AppError> {
     tokio::task::spawn_blocking(move || {
         read_buildings(&body)
             .map(|b| {
                 Arc::new(ParsedDataTile {
                     records: b.buildings,
                     present: true,
+                    fetched_at,
                 })
             })
             .map_err(|e| AppError::internal(format!("stored OSM data unreadable: {e}")))

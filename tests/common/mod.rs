@@ -55,7 +55,7 @@ pub async fn app_with(dem: &Path, db: &Path, extra: &[&str]) -> axum::Router {
     // Tests never reach the internet: without local OSM files or a stub upstream, no upstream.
     if !extra
         .iter()
-        .any(|a| *a == "--osm" || *a == "--overpass-url")
+        .any(|a| *a == "--osm" || *a == "--overpass-url" || *a == "--offline")
     {
         argv.push("--offline");
     }
