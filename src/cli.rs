@@ -15,7 +15,7 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Run the HTTP server (the default when no subcommand is given).
-    Serve(ServeArgs),
+    Serve(Box<ServeArgs>),
     /// Print the OpenAPI description the server serves at /openapi.json.
     Openapi,
     /// Store OSM files (PBF, OSM XML or Overpass JSON, optionally .gz) as data tiles in the
@@ -46,7 +46,7 @@ pub struct ImportArgs {
 impl Default for Command {
     fn default() -> Self {
         // No subcommand: serve with flags from the environment and the defaults.
-        Command::Serve(ServeArgs::parse_from(["serve"]))
+        Command::Serve(Box::new(ServeArgs::parse_from(["serve"])))
     }
 }
 
@@ -78,10 +78,23 @@ pub struct ServeArgs {
     pub osm: Vec<PathBuf>,
 
     /// Overpass API endpoint(s), tried in turn when one fails (repeat the flag, or separate with
-    /// commas).
-    #[arg(long, env = "CITYMESH_OVERPASS_URL", value_delimiter = ',',
-          default_value = crate::upstream::DEFAULT_OVERPASS_URL)]
-    pub overpass_url: Vec<String>,
+    /// commas). Default: the public main instance, https://overpass-api.de/api/interpreter. With
+    /// no data at all configured (no --osm, no --overpass-url, no --dem-dir files, nothing
+    /// imported), citymesh serves a procedural demo city instead.
+    #[arg(long, env = "CITYMESH_OVERPASS_URL", value_delimiter = ',')]
+    pub overpass_url: Option<Vec<String>>,
+
+    /// Largest GeoJSON document `POST /scene.glb` accepts, in megabytes.
+    #[arg(long, env = "CITYMESH_MAX_UPLOAD_MB", default_value_t = 10)]
+    pub max_upload_mb: u64,
+
+    /// Most features a posted GeoJSON may have.
+    #[arg(long, env = "CITYMESH_MAX_FEATURES", default_value_t = 20_000)]
+    pub max_features: usize,
+
+    /// Most positions (vertices) a posted GeoJSON may have over all its features.
+    #[arg(long, env = "CITYMESH_MAX_VERTICES", default_value_t = 1_000_000)]
+    pub max_vertices: usize,
 
     /// Never call Overpass: data tiles not in the cache database have no buildings.
     #[arg(long, env = "CITYMESH_OFFLINE")]

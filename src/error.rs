@@ -19,6 +19,12 @@ pub struct ErrorBody {
         example = "minLon 8.41 must be smaller than maxLon 8.39 (the order is minLon,minLat,maxLon,maxLat)"
     )]
     pub detail: String,
+    /// For uploaded GeoJSON: the index of the feature at fault.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub feature: Option<usize>,
+    /// For uploaded GeoJSON: the field at fault, e.g. `properties.height`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub field: Option<String>,
 }
 
 #[derive(Debug, Clone, thiserror::Error)]
@@ -26,6 +32,16 @@ pub enum AppError {
     /// The request is malformed: 400.
     #[error("{code}: {detail}")]
     BadRequest { code: &'static str, detail: String },
+    /// An uploaded document cannot be used: 413 (too large), 415 (not JSON) or 422 (not valid
+    /// building GeoJSON), naming the feature and field at fault.
+    #[error("{code}: {detail}")]
+    Document {
+        status: StatusCode,
+        code: &'static str,
+        detail: String,
+        feature: Option<usize>,
+        field: Option<String>,
+    },
     /// Nothing is served at this address: 404.
     #[error("{code}: {detail}")]
     NotFound { code: &'static str, detail: String },
@@ -74,7 +90,18 @@ const UPSTREAM_RETRY_AFTER_SECS: u64 = 30;
 impl IntoResponse for AppError {
     fn into_response(self) -> Response {
         let mut retry_after = None;
+        let mut at = (None, None);
         let (status, code, detail) = match self {
+            AppError::Document {
+                status,
+                code,
+                detail,
+                feature,
+                field,
+            } => {
+                at = (feature, field);
+                (status, code, detail)
+            }
             AppError::BadRequest { code, detail } => (StatusCode::BAD_REQUEST, code, detail),
             AppError::NotFound { code, detail } => (StatusCode::NOT_FOUND, code, detail),
             AppError::UpstreamFailed(cause) => {
@@ -122,6 +149,8 @@ impl IntoResponse for AppError {
             Json(ErrorBody {
                 error: code.to_owned(),
                 detail,
+                feature: at.0,
+                field: at.1,
             }),
         )
             .into_response();

@@ -3,24 +3,31 @@
 //! the figures that describe it.
 
 use crate::error::AppError;
+use crate::osm::AreaBuildings;
 use crate::state::AppState;
 use axum::http::{HeaderMap, HeaderName, HeaderValue, header};
 use bytes::Bytes;
 use citymesh_core::building::BuildingStats;
-use citymesh_core::building::set::extent_with;
+use citymesh_core::building::set::{BuildingSet, extent_with};
 use citymesh_core::geo::{GeoBbox, TileCoord};
 use citymesh_core::scene::{Border, Scene};
 use citymesh_core::terrain::GroundReport;
+use std::sync::Arc;
 use std::time::Instant;
 
 /// What to generate.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub enum Area {
     /// A box, buildings cut at its border (`/scene.glb`).
     Scene(GeoBbox),
     /// An XYZ tile: the ground cut to the tile, whole buildings whose cluster's representative
     /// point lies in it.
     Tile(TileCoord),
+    /// Given buildings (procedural or posted), whole, on the ground of a box.
+    Buildings {
+        bbox: GeoBbox,
+        set: Arc<BuildingSet>,
+    },
 }
 
 /// A generated GLB and what went into it.
@@ -61,11 +68,14 @@ pub async fn generate(state: &AppState, area: Area) -> Result<Generated, AppErro
 }
 
 async fn generate_within(state: &AppState, area: Area) -> Result<Generated, AppError> {
-    let data_area = match area {
-        Area::Scene(b) => b,
-        Area::Tile(t) => t.bounds(),
+    let buildings = match &area {
+        Area::Scene(b) => state.osm.area(b).await?,
+        Area::Tile(t) => state.osm.area(&t.bounds()).await?,
+        Area::Buildings { set, .. } => AreaBuildings {
+            set: set.clone(),
+            origin: "request".to_owned(),
+        },
     };
-    let buildings = state.osm.area(&data_area).await?;
     let _slot = tokio::time::timeout(
         state.limits.generation_wait,
         state.generations.clone().acquire_owned(),
@@ -83,9 +93,10 @@ async fn generate_within(state: &AppState, area: Area) -> Result<Generated, AppE
     let generated = tokio::task::spawn_blocking(move || {
         let started = Instant::now();
         let set = &buildings.set;
-        let (bbox, clusters, border) = match area {
-            Area::Scene(b) => (b, set.clusters_intersecting(&b), Border::Truncate),
-            Area::Tile(t) => (t.bounds(), set.clusters_of_tile(&t), Border::Whole),
+        let (bbox, clusters, border) = match &area {
+            Area::Scene(b) => (*b, set.clusters_intersecting(b), Border::Truncate),
+            Area::Tile(t) => (t.bounds(), set.clusters_of_tile(t), Border::Whole),
+            Area::Buildings { bbox, .. } => (*bbox, set.clusters().iter().collect(), Border::Whole),
         };
         // Whole buildings may reach past the box: their ground must be loaded too.
         let lookup = dem.lookup(&extent_with(&bbox, &clusters));
@@ -113,7 +124,6 @@ async fn generate_within(state: &AppState, area: Area) -> Result<Generated, AppE
         .generation_seconds
         .observe(generated.stats.generation_ms / 1e3);
     tracing::debug!(
-        ?area,
         ms = generated.stats.generation_ms,
         bytes = generated.glb.len(),
         "generated"

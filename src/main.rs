@@ -7,7 +7,7 @@ use clap::Parser;
 async fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command.unwrap_or_default() {
-        Command::Serve(args) => citymesh::server::run(args).await,
+        Command::Serve(args) => citymesh::server::run(*args).await,
         Command::Openapi => {
             println!("{}", citymesh::routes::openapi_json());
             Ok(())

@@ -5,11 +5,13 @@ use crate::cli::ServeArgs;
 use crate::db::{self, TileStore};
 use crate::dem::DemStore;
 use crate::metrics::Metrics;
-use crate::osm::{DataTileSource, OsmSource, OsmTileStore, load_osm_files};
+use crate::osm::{DataTileSource, OsmData, OsmSource, OsmTileStore, load_osm_files};
 use crate::state::{AppState, Limits};
 use crate::tile_cache::TileCache;
 use crate::upstream::{OverpassClient, OverpassConfig};
 use anyhow::Context;
+use citymesh_core::building::set::BuildingSet;
+use citymesh_core::procedural::ProceduralParams;
 use std::io::IsTerminal;
 use std::sync::Arc;
 use std::time::Duration;
@@ -38,8 +40,12 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         args.request_timeout_s > 0.0 && args.request_timeout_s.is_finite(),
         "--request-timeout-s must be a positive number of seconds"
     );
+    let overpass_urls = args
+        .overpass_url
+        .clone()
+        .unwrap_or_else(|| vec![crate::upstream::DEFAULT_OVERPASS_URL.to_owned()]);
     anyhow::ensure!(
-        !args.overpass_url.is_empty(),
+        !overpass_urls.is_empty(),
         "--overpass-url needs at least one endpoint"
     );
     let pool = db::open(&args.cache_db)
@@ -49,7 +55,24 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
     let cache_bytes = args.dem_cache_mb.saturating_mul(1 << 20);
     let dem = tokio::task::spawn_blocking(move || DemStore::open(&dem_dir, cache_bytes)).await?;
     let metrics = Arc::new(Metrics::default());
-    let files = if args.osm.is_empty() {
+    let store = OsmTileStore::new(pool.clone());
+    // Nothing configured at all: a procedural city, so a fresh `cargo run` shows something.
+    let demo = args.osm.is_empty()
+        && args.overpass_url.is_none()
+        && !args.offline
+        && dem.file_count() == 0
+        && store.count().await? == 0;
+    let files = if demo {
+        let city = tokio::task::spawn_blocking(|| {
+            citymesh_core::procedural::generate_city(&ProceduralParams::default())
+        })
+        .await??;
+        Some(OsmData {
+            set: Arc::new(BuildingSet::new(city.records)),
+            skipped_at_load: 0,
+            fingerprint: "demo".to_owned(),
+        })
+    } else if args.osm.is_empty() {
         None
     } else {
         let osm_files = args.osm.clone();
@@ -82,7 +105,7 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
                 None
             } else {
                 Some(Arc::new(OverpassClient::new(OverpassConfig {
-                    urls: args.overpass_url.clone(),
+                    urls: overpass_urls,
                     timeout: Duration::from_secs_f64(args.overpass_timeout_s),
                     retries: args.overpass_retries,
                     backoff: Duration::from_secs(1),
@@ -90,7 +113,7 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
                 })?))
             };
             OsmSource::Tiles(DataTileSource::new(
-                OsmTileStore::new(pool),
+                store,
                 upstream,
                 (args.osm_ttl_hours * 3600.0) as i64,
                 metrics.clone(),
@@ -107,7 +130,13 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         osm: Arc::new(osm),
         tiles,
         metrics,
+        max_upload_bytes: args.max_upload_mb.saturating_mul(1 << 20) as usize,
+        geojson_limits: citymesh_core::geojson::GeoJsonLimits {
+            max_features: args.max_features,
+            max_vertices: args.max_vertices,
+        },
         generations: Arc::new(Semaphore::new(slots)),
+        demo,
         limits: Limits {
             max_bbox_km2: args.max_bbox_km2,
             min_zoom: args.min_zoom,
@@ -139,6 +168,14 @@ pub async fn run(args: ServeArgs) -> anyhow::Result<()> {
         "citymesh {} listening on http://{addr}/ (API docs at http://{addr}/docs)",
         env!("CARGO_PKG_VERSION")
     );
+    if state.demo {
+        tracing::info!(
+            "no data configured (no --osm, --overpass-url, DEM files or imported data): serving a \
+             procedural demo city at {} E {} N; open http://{addr}/ or http://{addr}/procedural.glb",
+            citymesh_core::procedural::DEFAULT_LON,
+            citymesh_core::procedural::DEFAULT_LAT
+        );
+    }
     axum::serve(listener, crate::routes::app(state))
         .with_graceful_shutdown(shutdown_signal())
         .await?;

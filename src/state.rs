@@ -31,4 +31,10 @@ pub struct AppState {
     /// which never wait for a slot.
     pub generations: Arc<Semaphore>,
     pub limits: Limits,
+    /// Largest upload accepted, bytes.
+    pub max_upload_bytes: usize,
+    /// Most features and positions an uploaded GeoJSON may have.
+    pub geojson_limits: citymesh_core::geojson::GeoJsonLimits,
+    /// No data is configured: the buildings are the procedural demo city.
+    pub demo: bool,
 }

@@ -5,8 +5,10 @@ mod conditional;
 mod health;
 mod index;
 mod metrics;
+mod procedural;
 mod scene;
 mod scene_stats;
+mod scene_upload;
 mod tiles;
 
 use crate::error::{AppError, ErrorBody};
@@ -65,7 +67,12 @@ pub fn app(state: AppState) -> Router {
         .route("/", get(index::index))
         .route("/health", get(health::health))
         .route("/metrics", get(metrics::metrics))
-        .route("/scene.glb", get(scene::scene_glb))
+        .route(
+            "/scene.glb",
+            get(scene::scene_glb).post(scene_upload::post_scene),
+        )
+        .route("/procedural.geojson", get(procedural::procedural_geojson))
+        .route("/procedural.glb", get(procedural::procedural_glb))
         .route("/scene/stats", get(scene_stats::scene_stats))
         .route("/tiles/{z}/{x}/{y}", get(tiles::tile_glb))
         .merge(SwaggerUi::new("/docs").url("/openapi.json", ApiDoc::openapi()))

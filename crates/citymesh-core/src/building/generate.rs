@@ -263,8 +263,15 @@ fn from_multipolygon(mp: MultiPolygon<f64>, sources: &[&Footprint]) -> Vec<Footp
 
 /// The footprint minus the parts standing in it.
 fn subtract(footprint: &Footprint, parts: &[&Footprint]) -> Vec<Footprint> {
-    let cut: MultiPolygon<f64> = MultiPolygon::new(parts.iter().map(|p| to_polygon(p)).collect());
-    let rest = to_polygon(footprint).difference(&cut);
+    // One part at a time: parts may overlap (a tower standing on its podium), and overlapping
+    // members of one MultiPolygon would cancel out under the even-odd rule.
+    let mut rest = MultiPolygon::new(vec![to_polygon(footprint)]);
+    for part in parts {
+        if rest.0.is_empty() {
+            break;
+        }
+        rest = rest.difference(&to_polygon(part));
+    }
     let mut sources = vec![footprint];
     sources.extend_from_slice(parts);
     from_multipolygon(rest, &sources)

@@ -1,0 +1,163 @@
+//! `POST /scene.glb`: the mesh of the user's own building definitions, a GeoJSON
+//! FeatureCollection, built by the same generator as OSM data and placed on the DEM where one
+//! covers it. This is how a user fixes a wrong roof shape in real data and rebuilds.
+
+use super::conditional::glb_response;
+use crate::error::{AppError, ErrorBody};
+use crate::generate::{Area, generate, glb_headers};
+use crate::state::AppState;
+use crate::tile_cache::etag_of;
+use axum::body::Body;
+use axum::extract::State;
+use axum::http::{HeaderMap, StatusCode, header};
+use axum::response::Response;
+use citymesh_core::building::set::BuildingSet;
+use citymesh_core::geo::{GeoBbox, LocalFrame};
+use citymesh_core::geojson::{GeoJsonErrorKind, read_geojson};
+use std::sync::Arc;
+
+/// Ground around the buildings when the collection has no `bbox`, metres.
+const MARGIN_M: f64 = 20.0;
+
+fn document(status: StatusCode, code: &'static str, detail: String) -> AppError {
+    AppError::Document {
+        status,
+        code,
+        detail,
+        feature: None,
+        field: None,
+    }
+}
+
+/// The mesh of posted building definitions.
+///
+/// Send a GeoJSON FeatureCollection (`Content-Type: application/geo+json` or
+/// `application/json`) of Polygon and MultiPolygon features, holes allowed, with OSM-style
+/// properties: `height`, `min_height`, `building:levels`, `roof:shape` (flat, gabled, hipped,
+/// pyramidal, skillion, half-hipped, gambrel, mansard), `roof:height`, `roof:orientation`,
+/// `roof:direction`, `building:colour`, `roof:colour`, `building:part`. The collection's `bbox`
+/// (if given) is the scene's extent; otherwise the features' extent plus 20 m. Errors name the
+/// feature index and the field.
+#[utoipa::path(post, path = "/scene.glb", tag = "meshes",
+    request_body(content = serde_json::Value, content_type = "application/geo+json",
+        description = "A GeoJSON FeatureCollection of buildings"),
+    responses(
+        (status = 200, description = "The scene", content_type = "model/gltf-binary", body = Vec<u8>),
+        (status = 400, description = "The area is larger than the server's limit", body = ErrorBody),
+        (status = 413, description = "The body, or its number of features or positions, is over the limit", body = ErrorBody),
+        (status = 415, description = "Not sent as JSON", body = ErrorBody),
+        (status = 422, description = "Not JSON, not a FeatureCollection, or a feature is invalid (the body names which and why)", body = ErrorBody),
+    ))]
+pub async fn post_scene(
+    State(state): State<AppState>,
+    request_headers: HeaderMap,
+    body: Body,
+) -> Result<Response, AppError> {
+    let content_type = request_headers
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .unwrap_or("");
+    let mime = content_type.split(';').next().unwrap_or("").trim();
+    if mime != "application/geo+json" && mime != "application/json" {
+        return Err(document(
+            StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            "unsupported_media_type",
+            format!(
+                "Content-Type '{content_type}' is not JSON: send the GeoJSON with Content-Type: application/geo+json"
+            ),
+        ));
+    }
+    let limit = state.max_upload_bytes;
+    let bytes = axum::body::to_bytes(body, limit).await.map_err(|_| {
+        document(
+            StatusCode::PAYLOAD_TOO_LARGE,
+            "too_large",
+            format!(
+                "the body is over this server's limit of {} MB (--max-upload-mb); split the collection",
+                limit >> 20
+            ),
+        )
+    })?;
+    let limits = state.geojson_limits;
+    let scene = tokio::task::spawn_blocking(move || read_geojson(&bytes, limits))
+        .await?
+        .map_err(|e| {
+            let (status, code) = match e.kind {
+                GeoJsonErrorKind::TooLarge => (StatusCode::PAYLOAD_TOO_LARGE, "too_large"),
+                GeoJsonErrorKind::NotJson => (StatusCode::UNPROCESSABLE_ENTITY, "not_json"),
+                GeoJsonErrorKind::Invalid => (StatusCode::UNPROCESSABLE_ENTITY, "invalid_geojson"),
+            };
+            AppError::Document {
+                status,
+                code,
+                detail: e.to_string(),
+                feature: e.feature,
+                field: Some(e.field),
+            }
+        })?;
+    if scene.records.is_empty() {
+        return Err(document(
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid_geojson",
+            "features: the collection has no feature; add at least one building".to_owned(),
+        ));
+    }
+    let bbox = match scene.bbox {
+        Some(b) => b,
+        None => extent_with_margin(&scene.records).ok_or_else(|| {
+            document(
+                StatusCode::UNPROCESSABLE_ENTITY,
+                "invalid_geojson",
+                "features: their extent is not a valid area".to_owned(),
+            )
+        })?,
+    };
+    let km2 = bbox.area_km2();
+    if km2 > state.limits.max_bbox_km2 {
+        return Err(AppError::bad_request(
+            "bbox_too_large",
+            format!(
+                "the buildings span {km2:.2} km², more than this server's limit of {} km²",
+                state.limits.max_bbox_km2
+            ),
+        ));
+    }
+    let set =
+        tokio::task::spawn_blocking(move || Arc::new(BuildingSet::new(scene.records))).await?;
+    let generated = generate(&state, Area::Buildings { bbox, set }).await?;
+    let etag = etag_of(&generated.glb);
+    Ok(glb_response(
+        &request_headers,
+        generated.glb,
+        etag,
+        glb_headers(Some(&generated.stats)),
+        "no-store",
+    ))
+}
+
+/// The features' extent grown by [`MARGIN_M`].
+fn extent_with_margin(records: &[citymesh_core::osm::BuildingRecord]) -> Option<GeoBbox> {
+    let mut e = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
+    for n in records
+        .iter()
+        .flat_map(|r| &r.outers)
+        .flat_map(|r| &r.nodes)
+    {
+        e = [
+            e[0].min(n.lon),
+            e[1].min(n.lat),
+            e[2].max(n.lon),
+            e[3].max(n.lat),
+        ];
+    }
+    let (mx, my) =
+        LocalFrame::new((e[0] + e[2]) / 2.0, (e[1] + e[3]) / 2.0, 0.0).metres_per_degree();
+    let (dx, dy) = (MARGIN_M / mx, MARGIN_M / my);
+    GeoBbox::new(
+        (e[0] - dx).max(-180.0),
+        (e[1] - dy).max(-85.05),
+        (e[2] + dx).min(180.0),
+        (e[3] + dy).min(85.05),
+    )
+    .ok()
+}

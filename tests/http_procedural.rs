@@ -1,0 +1,513 @@
+//! Procedural and user-defined scenes over HTTP: determinism, layouts and roof shapes by weight,
+//! the GeoJSON round trip through `POST /scene.glb`, every invalid upload with its status and
+//! message, and the demo city a server with no data serves.
+
+mod common;
+
+use axum::body::Body;
+use axum::http::{Request, StatusCode};
+use common::{Answer, app_with, assert_valid_glb, get};
+use http_body_util::BodyExt;
+use serde_json::{Value, json};
+use std::collections::BTreeSet;
+use tower::ServiceExt;
+
+async fn app() -> (axum::Router, tempfile::TempDir) {
+    let db = tempfile::tempdir().unwrap();
+    let empty = tempfile::tempdir().unwrap();
+    let app = app_with(empty.path(), &db.path().join("c.sqlite"), &[]).await;
+    (app, db)
+}
+
+async fn post(app: &axum::Router, content_type: &str, body: Vec<u8>) -> Answer {
+    let r = app
+        .clone()
+        .oneshot(
+            Request::post("/scene.glb")
+                .header("content-type", content_type)
+                .body(Body::from(body))
+                .unwrap(),
+        )
+        .await
+        .unwrap();
+    let status = r.status();
+    let headers = r.headers().clone();
+    let body = r.into_body().collect().await.unwrap().to_bytes().to_vec();
+    Answer {
+        status,
+        headers,
+        body,
+    }
+}
+
+fn features(geojson: &[u8]) -> Vec<Value> {
+    let doc: Value = serde_json::from_slice(geojson).unwrap();
+    doc["features"].as_array().unwrap().clone()
+}
+
+fn values(features: &[Value], key: &str) -> BTreeSet<String> {
+    features
+        .iter()
+        .filter_map(|f| f["properties"][key].as_str().map(str::to_owned))
+        .collect()
+}
+
+const Q: &str = "seed=7&size=600,400&complexity=5";
+
+#[tokio::test]
+async fn the_same_seed_gives_the_same_bytes_and_another_seed_another_city() {
+    let (app, _db) = app().await;
+    let a = get(&app, &format!("/procedural.geojson?{Q}")).await;
+    assert_eq!(a.status, StatusCode::OK);
+    assert_eq!(a.header("content-type"), "application/geo+json");
+    let b = get(&app, &format!("/procedural.geojson?{Q}")).await;
+    assert!(a.body == b.body);
+    let g1 = get(&app, &format!("/procedural.glb?{Q}")).await;
+    let g2 = get(&app, &format!("/procedural.glb?{Q}")).await;
+    assert_eq!(g1.status, StatusCode::OK);
+    assert!(g1.body == g2.body);
+    assert_valid_glb(&g1.body);
+    let other = get(&app, "/procedural.geojson?seed=8&size=600,400&complexity=5").await;
+    assert!(other.body != a.body);
+    let other_glb = get(&app, "/procedural.glb?seed=8&size=600,400&complexity=5").await;
+    assert!(other_glb.body != g1.body);
+}
+
+#[tokio::test]
+async fn each_layout_appears_exactly_when_it_has_weight() {
+    let (app, _db) = app().await;
+    let all = features(
+        &get(&app, "/procedural.geojson?seed=3&complexity=6")
+            .await
+            .body,
+    );
+    let every: BTreeSet<String> = ["detached", "row", "perimeter", "tower", "industrial"]
+        .map(str::to_owned)
+        .into();
+    assert_eq!(values(&all, "citymesh:layout"), every);
+    for layout in ["detached", "row", "perimeter", "tower", "industrial"] {
+        let f = features(
+            &get(
+                &app,
+                &format!("/procedural.geojson?seed=3&complexity=6&layouts={layout}:1"),
+            )
+            .await
+            .body,
+        );
+        assert!(!f.is_empty(), "{layout}");
+        assert_eq!(
+            values(&f, "citymesh:layout"),
+            [layout.to_owned()].into(),
+            "{layout}"
+        );
+    }
+    // Two layouts weighted, the others 0.
+    let f = features(
+        &get(
+            &app,
+            "/procedural.geojson?seed=3&complexity=6&layouts=row:1,tower:1",
+        )
+        .await
+        .body,
+    );
+    assert_eq!(
+        values(&f, "citymesh:layout"),
+        ["row".to_owned(), "tower".to_owned()].into()
+    );
+    // What each layout is made of.
+    let f = features(
+        &get(
+            &app,
+            "/procedural.geojson?seed=3&complexity=6&layouts=tower:1",
+        )
+        .await
+        .body,
+    );
+    assert!(f.iter().any(|x| x["properties"]["building:part"] == "yes"));
+    assert!(
+        f.iter()
+            .any(|x| x["properties"].get("min_height").is_some())
+    );
+    let f = features(
+        &get(
+            &app,
+            "/procedural.geojson?seed=3&complexity=6&layouts=perimeter:1",
+        )
+        .await
+        .body,
+    );
+    assert!(
+        f.iter()
+            .all(|x| !x["geometry"]["coordinates"].as_array().unwrap().is_empty())
+    );
+    assert!(
+        f.iter()
+            .any(|x| x["geometry"]["coordinates"].as_array().unwrap().len() == 2)
+    );
+}
+
+#[tokio::test]
+async fn each_roof_shape_appears_exactly_when_it_has_weight() {
+    let (app, _db) = app().await;
+    let shapes = [
+        "flat",
+        "gabled",
+        "hipped",
+        "pyramidal",
+        "skillion",
+        "half-hipped",
+        "gambrel",
+        "mansard",
+    ];
+    // Detached houses take their roofs from the weights.
+    let all = features(
+        &get(
+            &app,
+            "/procedural.geojson?seed=5&complexity=6&layouts=detached:1",
+        )
+        .await
+        .body,
+    );
+    assert_eq!(values(&all, "roof:shape"), shapes.map(str::to_owned).into());
+    for shape in shapes {
+        let f = features(
+            &get(
+                &app,
+                &format!("/procedural.geojson?seed=5&complexity=6&layouts=detached:1,row:1,perimeter:1&roofs={shape}:1"),
+            )
+            .await
+            .body,
+        );
+        assert_eq!(
+            values(&f, "roof:shape"),
+            [shape.to_owned()].into(),
+            "{shape}"
+        );
+    }
+    // Towers and halls force flat roofs whatever the weights say.
+    let f = features(
+        &get(
+            &app,
+            "/procedural.geojson?seed=5&complexity=6&layouts=tower:1,industrial:1&roofs=gabled:1",
+        )
+        .await
+        .body,
+    );
+    assert_eq!(values(&f, "roof:shape"), ["flat".to_owned()].into());
+}
+
+#[tokio::test]
+async fn posting_the_procedural_geojson_gives_the_procedural_mesh() {
+    let (app, _db) = app().await;
+    let q = "seed=11&size=700,500&complexity=6";
+    let geojson = get(&app, &format!("/procedural.geojson?{q}")).await.body;
+    let expected = get(&app, &format!("/procedural.glb?{q}")).await;
+    let posted = post(&app, "application/geo+json", geojson).await;
+    assert_eq!(posted.status, StatusCode::OK);
+    assert_eq!(
+        posted.header("x-citymesh-buildings"),
+        expected.header("x-citymesh-buildings")
+    );
+    assert!(posted.body == expected.body, "the meshes differ");
+}
+
+/// A valid single building, to break one piece at a time.
+fn building() -> Value {
+    json!({"type": "Feature", "properties": {"height": 10, "roof:shape": "gabled"},
+        "geometry": {"type": "Polygon", "coordinates": [[[8.4, 49.01], [8.4002, 49.01], [8.4002, 49.0101], [8.4, 49.0101], [8.4, 49.01]]]}})
+}
+
+fn collection(features: Vec<Value>) -> Vec<u8> {
+    serde_json::to_vec(&json!({"type": "FeatureCollection", "features": features})).unwrap()
+}
+
+#[tokio::test]
+async fn a_posted_collection_with_a_courtyard_builds_on_the_dem() {
+    let db = tempfile::tempdir().unwrap();
+    let app = app_with(&common::dem_dir(), &db.path().join("c.sqlite"), &[]).await;
+    let mut b = building();
+    b["geometry"] = json!({"type": "MultiPolygon", "coordinates": [[
+        [[8.41, 49.01], [8.411, 49.01], [8.411, 49.011], [8.41, 49.011], [8.41, 49.01]],
+        [[8.4103, 49.0103], [8.4103, 49.0107], [8.4107, 49.0107], [8.4107, 49.0103], [8.4103, 49.0103]]
+    ]]});
+    let a = post(&app, "application/json", collection(vec![b, building()])).await;
+    assert_eq!(
+        a.status,
+        StatusCode::OK,
+        "{}",
+        String::from_utf8_lossy(&a.body)
+    );
+    assert_eq!(a.header("x-citymesh-buildings"), "2");
+    assert_eq!(a.header("x-citymesh-ground"), "dem");
+    assert_valid_glb(&a.body);
+}
+
+/// An upload case: name, content type, body, status, error code, feature index, message part.
+type Case<'a> = (&'a str, &'a str, Vec<u8>, StatusCode, &'a str, Option<u64>, &'a str);
+
+#[tokio::test]
+async fn every_invalid_upload_gets_its_status_and_says_what_to_fix() {
+    let db = tempfile::tempdir().unwrap();
+    let empty = tempfile::tempdir().unwrap();
+    let app = app_with(
+        empty.path(),
+        &db.path().join("c.sqlite"),
+        &[
+            "--max-upload-mb",
+            "1",
+            "--max-features",
+            "50",
+            "--max-vertices",
+            "400",
+        ],
+    )
+    .await;
+    let with = |f: &dyn Fn(&mut Value)| {
+        let mut b = building();
+        f(&mut b);
+        collection(vec![building(), b])
+    };
+    let big_ring: Vec<Value> = (0..=450)
+        .map(|i| {
+            let a = f64::from(i) / 450.0 * std::f64::consts::TAU;
+            json!([8.4 + 0.001 * a.cos(), 49.01 + 0.001 * a.sin()])
+        })
+        .collect();
+    let cases: Vec<Case> = vec![
+        (
+            "not JSON",
+            "application/json",
+            b"{not json".to_vec(),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "not_json",
+            None,
+            "not JSON",
+        ),
+        (
+            "wrong media type",
+            "text/plain",
+            collection(vec![building()]),
+            StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            "unsupported_media_type",
+            None,
+            "application/geo+json",
+        ),
+        (
+            "not a FeatureCollection",
+            "application/json",
+            serde_json::to_vec(&building()).unwrap(),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid_geojson",
+            None,
+            "must be a GeoJSON FeatureCollection",
+        ),
+        (
+            "a Point",
+            "application/json",
+            with(&|b| b["geometry"] = json!({"type": "Point", "coordinates": [8.4, 49.0]})),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid_geojson",
+            Some(1),
+            "features[1].geometry.type: is \"Point\"; buildings must be Polygon or MultiPolygon",
+        ),
+        (
+            "an unclosed ring",
+            "application/json",
+            with(&|b| {
+                b["geometry"]["coordinates"][0]
+                    .as_array_mut()
+                    .unwrap()
+                    .pop();
+                b["geometry"]["coordinates"][0]
+                    .as_array_mut()
+                    .unwrap()
+                    .push(json!([8.4, 49.00005]));
+            }),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid_geojson",
+            Some(1),
+            "features[1].geometry.coordinates[0]: is not closed",
+        ),
+        (
+            "a self-intersecting ring",
+            "application/json",
+            with(&|b| {
+                b["geometry"]["coordinates"] = json!([[
+                    [8.4, 49.0],
+                    [8.4002, 49.0001],
+                    [8.4002, 49.0],
+                    [8.4, 49.00004],
+                    [8.4, 49.0]
+                ]])
+            }),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid_geojson",
+            Some(1),
+            "features[1].geometry.coordinates[0]: crosses itself",
+        ),
+        (
+            "a latitude of 95",
+            "application/json",
+            with(&|b| b["geometry"]["coordinates"][0][2] = json!([8.4002, 95.0])),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid_geojson",
+            Some(1),
+            "features[1].geometry.coordinates[0][2]: [8.4002, 95] is out of range",
+        ),
+        (
+            "a height of 1e9",
+            "application/json",
+            with(&|b| b["properties"]["height"] = json!(1e9)),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid_geojson",
+            Some(1),
+            "features[1].properties.height: '1000000000.0' is not a length in metres from 0 to 1000",
+        ),
+        (
+            "a NaN height",
+            "application/json",
+            with(&|b| b["properties"]["height"] = json!("NaN")),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid_geojson",
+            Some(1),
+            "features[1].properties.height: 'NaN' is not a length",
+        ),
+        (
+            "an unknown roof shape",
+            "application/json",
+            with(&|b| b["properties"]["roof:shape"] = json!("gabeld")),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid_geojson",
+            Some(1),
+            "features[1].properties.roof:shape: 'gabeld' is not one of flat, gabled",
+        ),
+        (
+            "min_height above height",
+            "application/json",
+            with(&|b| b["properties"]["min_height"] = json!(12)),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid_geojson",
+            Some(1),
+            "features[1].properties.min_height: 12 is not below the height 10",
+        ),
+        (
+            "too many features",
+            "application/json",
+            collection(vec![building(); 51]),
+            StatusCode::PAYLOAD_TOO_LARGE,
+            "too_large",
+            None,
+            "51 features, more than the limit of 50",
+        ),
+        (
+            "too many vertices",
+            "application/json",
+            with(&|b| b["geometry"]["coordinates"] = json!([big_ring.clone()])),
+            StatusCode::PAYLOAD_TOO_LARGE,
+            "too_large",
+            Some(1),
+            "more than 400 positions",
+        ),
+        (
+            "a body over the size limit",
+            "application/json",
+            vec![b' '; 1_100_000],
+            StatusCode::PAYLOAD_TOO_LARGE,
+            "too_large",
+            None,
+            "over this server's limit of 1 MB",
+        ),
+        (
+            "no features",
+            "application/json",
+            collection(vec![]),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid_geojson",
+            None,
+            "has no feature",
+        ),
+    ];
+    for (name, content_type, body, status, code, feature, message) in cases {
+        let a = post(&app, content_type, body).await;
+        assert_eq!(
+            a.status,
+            status,
+            "{name}: {}",
+            String::from_utf8_lossy(&a.body)
+        );
+        let e = a.json();
+        assert_eq!(e["error"], code, "{name}: {e}");
+        assert_eq!(e["feature"].as_u64(), feature, "{name}: {e}");
+        assert!(
+            e["detail"].as_str().unwrap().contains(message),
+            "{name}: {e}"
+        );
+    }
+}
+
+#[tokio::test]
+async fn procedural_parameters_out_of_range_are_refused() {
+    let db = tempfile::tempdir().unwrap();
+    let empty = tempfile::tempdir().unwrap();
+    let app = app_with(
+        empty.path(),
+        &db.path().join("c.sqlite"),
+        &["--max-bbox-km2", "1"],
+    )
+    .await;
+    for (query, message) in [
+        ("size=10", "width must be between 50 and 5000 metres"),
+        ("size=1000,x", "size '1000,x' must be W,H"),
+        (
+            "complexity=40",
+            "complexity must be a whole number from 0 to 12",
+        ),
+        ("layouts=castle:1", "layouts: unknown 'castle'"),
+        (
+            "roofs=gabled:-1",
+            "weight of 'gabled' must be a finite number >= 0",
+        ),
+        (
+            "lat=89",
+            "lon must be within -180..180 and lat within -85..85",
+        ),
+        ("size=1100", "more than this server's limit of 1 km²"),
+        ("seed=abc", "seed"),
+    ] {
+        let a = get(&app, &format!("/procedural.glb?{query}")).await;
+        assert_eq!(a.status, StatusCode::BAD_REQUEST, "{query}");
+        let e = a.json();
+        assert!(
+            e["detail"].as_str().unwrap().contains(message),
+            "{query}: {e}"
+        );
+    }
+}
+
+#[tokio::test]
+async fn with_no_data_configured_the_server_shows_a_demo_city() {
+    let db = tempfile::tempdir().unwrap();
+    let empty = tempfile::tempdir().unwrap();
+    // No --osm, no --overpass-url, no DEM files, nothing imported, not --offline.
+    let args = <citymesh::cli::ServeArgs as clap::Parser>::parse_from([
+        "serve",
+        "--dem-dir",
+        empty.path().to_str().unwrap(),
+        "--cache-db",
+        db.path().join("c.sqlite").to_str().unwrap(),
+    ]);
+    let state = citymesh::server::build_state(&args).await.unwrap();
+    assert!(state.demo);
+    let app = citymesh::app(state);
+    let index = String::from_utf8(get(&app, "/").await.body).unwrap();
+    assert!(index.contains("/procedural.glb"));
+    // The demo city stands around Karlsruhe palace and is served like OSM data.
+    let s = get(&app, "/scene/stats?bbox=8.400,49.010,8.409,49.017")
+        .await
+        .json();
+    assert!(s["buildings"]["generated"].as_u64().unwrap() > 50, "{s}");
+    let t = get(&app, "/tiles/16/34297/22502.glb").await;
+    assert_eq!(t.status, StatusCode::OK);
+    assert_eq!(t.header("x-citymesh-osm"), "files");
+    assert!(t.header("x-citymesh-buildings").parse::<usize>().unwrap() > 0);
+}
