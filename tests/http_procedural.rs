@@ -243,7 +243,15 @@ async fn a_posted_collection_with_a_courtyard_builds_on_the_dem() {
 }
 
 /// An upload case: name, content type, body, status, error code, feature index, message part.
-type Case<'a> = (&'a str, &'a str, Vec<u8>, StatusCode, &'a str, Option<u64>, &'a str);
+type Case<'a> = (
+    &'a str,
+    &'a str,
+    Vec<u8>,
+    StatusCode,
+    &'a str,
+    Option<u64>,
+    &'a str,
+);
 
 #[tokio::test]
 async fn every_invalid_upload_gets_its_status_and_says_what_to_fix() {
