@@ -9,7 +9,7 @@ use axum::http::{HeaderMap, HeaderName, HeaderValue, header};
 use bytes::Bytes;
 use citymesh_core::building::BuildingStats;
 use citymesh_core::building::set::{BuildingSet, extent_with};
-use citymesh_core::geo::{GeoBbox, TileCoord};
+use citymesh_core::geo::{GeoBbox, ImplicitTile, TileCoord};
 use citymesh_core::scene::{Border, Scene};
 use citymesh_core::terrain::GroundReport;
 use std::sync::Arc;
@@ -28,6 +28,9 @@ pub enum Area {
         bbox: GeoBbox,
         set: Arc<BuildingSet>,
     },
+    /// A content tile of the implicit quadtree over `root` (3D Tiles): the ground of the tile
+    /// and, whole, the buildings whose cluster's representative point it holds; in ECEF.
+    Implicit { root: GeoBbox, tile: ImplicitTile },
 }
 
 /// A generated GLB and what went into it.
@@ -75,6 +78,7 @@ async fn generate_within(state: &AppState, area: Area) -> Result<Generated, AppE
             set: set.clone(),
             origin: "request".to_owned(),
         },
+        Area::Implicit { root, tile } => state.osm.area(&implicit_bbox(root, tile)?).await?,
     };
     let _slot = tokio::time::timeout(
         state.limits.generation_wait,
@@ -97,12 +101,29 @@ async fn generate_within(state: &AppState, area: Area) -> Result<Generated, AppE
             Area::Scene(b) => (*b, set.clusters_intersecting(b), Border::Truncate),
             Area::Tile(t) => (t.bounds(), set.clusters_of_tile(t), Border::Whole),
             Area::Buildings { bbox, .. } => (*bbox, set.clusters().iter().collect(), Border::Whole),
+            Area::Implicit { root, tile } => {
+                let bbox = implicit_bbox(root, tile).unwrap_or(*root);
+                let clusters = set
+                    .clusters_intersecting(&bbox)
+                    .into_iter()
+                    .filter(|c| {
+                        let (lon, lat) = c.representative_point();
+                        root.contains(lon, lat)
+                            && ImplicitTile::containing(root, tile.level, lon, lat) == *tile
+                    })
+                    .collect();
+                (bbox, clusters, Border::Whole)
+            }
         };
         // Whole buildings may reach past the box: their ground must be loaded too.
         let lookup = dem.lookup(&extent_with(&bbox, &clusters));
         let groups: Vec<_> = clusters.iter().map(|c| set.cluster_records(c)).collect();
         let scene = Scene::new(&lookup.model, &bbox, &groups, border);
-        let glb = scene.to_glb();
+        let glb = if matches!(area, Area::Implicit { .. }) {
+            scene.to_glb_ecef()
+        } else {
+            scene.to_glb()
+        };
         let stats = GenerationStats {
             generation_ms: started.elapsed().as_secs_f64() * 1e3,
             vertices: scene.mesh.positions.len(),
@@ -129,6 +150,12 @@ async fn generate_within(state: &AppState, area: Area) -> Result<Generated, AppE
         "generated"
     );
     Ok(generated)
+}
+
+/// The box of an implicit tile.
+pub fn implicit_bbox(root: &GeoBbox, tile: &ImplicitTile) -> Result<GeoBbox, AppError> {
+    let [w, s, e, n] = tile.bounds(root);
+    GeoBbox::new(w, s, e, n).map_err(|e| AppError::bad_request("invalid_tile", e.to_string()))
 }
 
 /// The headers every GLB response carries.

@@ -57,8 +57,13 @@ pub fn tile_ranges(area: &GeoBbox, zooms: (u8, u8)) -> Vec<(u8, u32, u32, u32, u
         .collect()
 }
 
+/// Marks the SQLite variant of 3D Tiles content.
+const IMPLICIT_MARK: &str = "-3dtiles-";
+
 pub struct TileCache {
-    memory: moka::future::Cache<TileCoord, CachedTile>,
+    /// Keyed by the tile scheme's area (empty for XYZ tiles; the region for 3D Tiles content)
+    /// and the coordinate.
+    memory: moka::future::Cache<(Arc<str>, TileCoord), CachedTile>,
     store: TileStore,
     /// Everything the bytes depend on besides the coordinate and the OSM data tiles (which
     /// invalidate explicitly): generator version, DEM files, local OSM files.
@@ -89,18 +94,25 @@ impl TileCache {
         }
     }
 
-    fn key(&self, t: &TileCoord) -> TileKey {
+    fn key(&self, area: &str, t: &TileCoord) -> TileKey {
+        let variant = if area.is_empty() {
+            self.variant.clone()
+        } else {
+            format!("{}{IMPLICIT_MARK}{area}", self.variant)
+        };
         TileKey {
             z: t.z,
             x: t.x,
             y: t.y,
-            variant: self.variant.clone(),
+            variant,
         }
     }
 
     /// The tile from memory, else SQLite, else `generate` (run once however many ask at once).
+    /// `area` tells tile schemes apart: empty for XYZ tiles, the region of 3D Tiles content.
     pub async fn get_or_generate<F, Fut>(
         &self,
+        area: &str,
         tile: TileCoord,
         generate: F,
     ) -> Result<(CachedTile, CacheLevel), AppError>
@@ -112,8 +124,8 @@ impl TileCache {
         let level = AtomicU8::new(0);
         let result = self
             .memory
-            .try_get_with(tile, async {
-                let key = self.key(&tile);
+            .try_get_with((Arc::from(area), tile), async {
+                let key = self.key(area, &tile);
                 if let Some(glb) = self.store.get(&key).await? {
                     self.metrics.cache("memory", false);
                     self.metrics.cache("sqlite", true);
@@ -157,16 +169,20 @@ impl TileCache {
         Ok((tile_value, level))
     }
 
-    /// Drops every cached tile (any served zoom) that overlaps `area`, in memory and in SQLite.
+    /// Drops every cached XYZ tile (any served zoom) that overlaps `area`, in memory and in
+    /// SQLite, and all 3D Tiles content (its regions do not follow the XYZ grid; it is cheap to
+    /// build again).
     pub async fn invalidate_area(&self, area: &GeoBbox) -> Result<u64, AppError> {
         let ranges = tile_ranges(area, self.zooms);
-        let removed = self.store.delete_ranges(&ranges).await?;
+        let removed = self.store.delete_ranges(&ranges).await?
+            + self.store.delete_variants_containing(IMPLICIT_MARK).await?;
         let ranges = Arc::new(ranges);
         let r = ranges.clone();
-        if let Err(e) = self.memory.invalidate_entries_if(move |t, _| {
-            r.iter().any(|&(z, x0, x1, y0, y1)| {
-                t.z == z && (x0..=x1).contains(&t.x) && (y0..=y1).contains(&t.y)
-            })
+        if let Err(e) = self.memory.invalidate_entries_if(move |(scheme, t), _| {
+            !scheme.is_empty()
+                || r.iter().any(|&(z, x0, x1, y0, y1)| {
+                    t.z == z && (x0..=x1).contains(&t.x) && (y0..=y1).contains(&t.y)
+                })
         }) {
             tracing::error!("cannot invalidate cached tiles: {e}");
         }

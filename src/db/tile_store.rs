@@ -76,6 +76,17 @@ impl TileStore {
         Ok(removed)
     }
 
+    /// Deletes the tiles whose variant contains `mark`.
+    pub async fn delete_variants_containing(&self, mark: &str) -> Result<u64, sqlx::Error> {
+        Ok(
+            sqlx::query("DELETE FROM generated_tiles WHERE instr(variant, ?) > 0")
+                .bind(mark)
+                .execute(&self.pool)
+                .await?
+                .rows_affected(),
+        )
+    }
+
     /// Number of stored tiles.
     pub async fn count(&self) -> Result<i64, sqlx::Error> {
         sqlx::query("SELECT COUNT(*) FROM generated_tiles")

@@ -10,6 +10,7 @@ mod scene;
 mod scene_stats;
 mod scene_upload;
 mod tiles;
+mod tiles3d;
 
 use crate::error::{AppError, ErrorBody};
 use crate::state::AppState;
@@ -75,6 +76,15 @@ pub fn app(state: AppState) -> Router {
         .route("/procedural.glb", get(procedural::procedural_glb))
         .route("/scene/stats", get(scene_stats::scene_stats))
         .route("/tiles/{z}/{x}/{y}", get(tiles::tile_glb))
+        .route("/3dtiles/tileset.json", get(tiles3d::tileset))
+        .route(
+            "/3dtiles/area/{bbox}/subtrees/{level}/{x}/{y}",
+            get(tiles3d::subtree),
+        )
+        .route(
+            "/3dtiles/area/{bbox}/content/{level}/{x}/{y}",
+            get(tiles3d::content),
+        )
         .merge(SwaggerUi::new("/docs").url("/openapi.json", ApiDoc::openapi()))
         .fallback(not_found)
         .layer(axum::middleware::from_fn_with_state(

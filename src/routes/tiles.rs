@@ -57,7 +57,7 @@ pub async fn tile_glb(
     }
     let (cached, level) = state
         .tiles
-        .get_or_generate(tile, || async {
+        .get_or_generate("", tile, || async {
             let g = generate(&state, Area::Tile(tile)).await?;
             Ok((g.glb, g.stats))
         })

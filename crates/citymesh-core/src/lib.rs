@@ -14,3 +14,4 @@ pub mod osm;
 pub mod procedural;
 pub mod scene;
 pub mod terrain;
+pub mod tiles3d;

@@ -3,7 +3,7 @@
 
 use crate::building::{BuildingContext, BuildingStats, generate_cluster};
 use crate::geo::{GeoBbox, LocalFrame};
-use crate::mesh::{GlbOrigin, Mesh, write_glb};
+use crate::mesh::{GlbOrigin, Mesh, Placement, write_glb, write_glb_placed};
 use crate::osm::BuildingRecord;
 use crate::terrain::{ElevationModel, GroundReport, build_ground};
 use std::ops::Range;
@@ -66,6 +66,21 @@ impl Scene {
             buildings,
             cluster_triangles,
         }
+    }
+
+    /// The scene as 3D Tiles content: ECEF positions relative to the scene centre's ECEF point
+    /// (see [`crate::mesh::Placement::Ecef`]).
+    pub fn to_glb_ecef(&self) -> Vec<u8> {
+        let (lon, lat, _) = self.frame.origin();
+        let centre = crate::geo::geodetic_to_ecef(lon, lat, 0.0);
+        write_glb_placed(
+            &self.mesh,
+            Placement::Ecef {
+                frame: self.frame,
+                centre,
+            },
+            &self.buildings.generated_ids,
+        )
     }
 
     /// The scene as GLB bytes, with its origin and the OSM ids of its buildings recorded in the

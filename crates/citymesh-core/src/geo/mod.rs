@@ -1,10 +1,14 @@
 //! Geographic frames and tile math: validated bounding boxes, the local metric frame every scene is
-//! built in, and Web Mercator XYZ tiles.
+//! built in, Web Mercator XYZ tiles, ECEF coordinates and the implicit quadtree of 3D Tiles.
 
 mod bbox;
+mod ecef;
+mod implicit;
 mod local_frame;
 mod tile;
 
 pub use bbox::{BboxError, GeoBbox, MAX_MERCATOR_LAT};
+pub use ecef::{ecef_to_geodetic, geodetic_to_ecef};
+pub use implicit::{ImplicitTile, morton};
 pub use local_frame::{LocalFrame, WGS84_A, WGS84_E2};
 pub use tile::{MAX_ZOOM, TileCoord, TileError};

@@ -22,13 +22,45 @@ const ARRAY_BUFFER: u32 = 34962;
 const FLOAT: u32 = 5126;
 const UNSIGNED_BYTE: u32 = 5121;
 
-/// Encodes the mesh as GLB bytes. Degenerate triangles (no area, so no normal) are left out.
-/// `buildings` (OSM ids such as `way/123`) are listed in `scenes[0].extras.buildings`.
+/// How mesh positions (local east, north, up metres) are placed in the file.
+#[derive(Debug, Clone, Copy)]
+pub enum Placement {
+    /// glTF y-up axes around the frame's origin: (x, y, z) = (east, up, -north); the origin is
+    /// recorded in `scenes[0].extras.origin`.
+    Local(GlbOrigin),
+    /// 3D Tiles content: Earth-centred coordinates relative to `centre` (ECEF metres), z-up,
+    /// under a node whose matrix turns them y-up and moves them to `centre`, so a 3D Tiles
+    /// client's standard y-up to z-up transform gives ECEF.
+    Ecef {
+        frame: crate::geo::LocalFrame,
+        centre: [f64; 3],
+    },
+}
+
+/// Encodes the mesh as GLB bytes in local glTF axes. Degenerate triangles (no area, so no normal)
+/// are left out. `buildings` (OSM ids such as `way/123`) are listed in
+/// `scenes[0].extras.buildings`.
 pub fn write_glb(mesh: &Mesh, origin: GlbOrigin, buildings: &[String]) -> Vec<u8> {
-    // Keep only triangles with a usable normal, bucketed by material.
+    write_glb_placed(mesh, Placement::Local(origin), buildings)
+}
+
+/// Encodes the mesh as GLB bytes with the given placement.
+pub fn write_glb_placed(mesh: &Mesh, placement: Placement, buildings: &[String]) -> Vec<u8> {
+    let map = |p: [f64; 3]| -> [f64; 3] {
+        match &placement {
+            Placement::Local(_) => [p[0], p[2], -p[1]],
+            Placement::Ecef { frame, centre } => {
+                let (lon, lat, h) = frame.to_geographic(p);
+                let e = crate::geo::geodetic_to_ecef(lon, lat, h);
+                [e[0] - centre[0], e[1] - centre[1], e[2] - centre[2]]
+            }
+        }
+    };
+    // Positions in file axes, and the triangles with a usable normal, bucketed by material.
+    let placed: Vec<[f64; 3]> = mesh.positions.iter().map(|&p| map(p)).collect();
     let mut buckets: Vec<Vec<(usize, [f32; 3])>> = vec![Vec::new(); Material::ALL.len()];
     for (t, (&tri, style)) in mesh.triangles.iter().zip(&mesh.styles).enumerate() {
-        if let Some(n) = face_normal(mesh.corners(tri)) {
+        if let Some(n) = face_normal(tri.map(|i| placed[i as usize])) {
             buckets[style.material as usize].push((t, n));
         }
     }
@@ -55,8 +87,7 @@ pub fn write_glb(mesh: &Mesh, origin: GlbOrigin, buildings: &[String]) -> Vec<u8
             let tri = mesh.triangles[t];
             let [r, g, b] = mesh.styles[t].colour.to_linear_u8();
             for i in tri {
-                let [e, north, up] = mesh.positions[i as usize];
-                let p = [e as f32, up as f32, -north as f32];
+                let p = placed[i as usize].map(|c| c as f32);
                 for k in 0..3 {
                     min[k] = min[k].min(p[k]);
                     max[k] = max[k].max(p[k]);
@@ -91,10 +122,25 @@ pub fn write_glb(mesh: &Mesh, origin: GlbOrigin, buildings: &[String]) -> Vec<u8
             "baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.9}}));
     }
 
-    let extras = json!({"origin": {"lon": origin.lon, "lat": origin.lat, "height": origin.height},
-        "heightReference": "metres above mean sea level (EGM96 geoid, as SRTM)",
-        "axes": "x = east, y = up, z = -north, metres from the origin (local frame on WGS84)",
-        "buildings": buildings});
+    let (extras, node) = match &placement {
+        Placement::Local(origin) => (
+            json!({"origin": {"lon": origin.lon, "lat": origin.lat, "height": origin.height},
+                "heightReference": "metres above mean sea level (EGM96 geoid, as SRTM)",
+                "axes": "x = east, y = up, z = -north, metres from the origin (local frame on WGS84)",
+                "buildings": buildings}),
+            json!({"name": "citymesh", "mesh": 0}),
+        ),
+        Placement::Ecef { centre: c, .. } => (
+            json!({"axes": "ECEF (WGS84) metres relative to the node translation, z-up; heights above the ellipsoid are SRTM heights",
+                "buildings": buildings}),
+            // z-up to y-up, then the translation (y-up too), column-major.
+            json!({"name": "citymesh", "mesh": 0, "matrix": [
+                1.0, 0.0, 0.0, 0.0,
+                0.0, 0.0, -1.0, 0.0,
+                0.0, 1.0, 0.0, 0.0,
+                c[0], c[2], -c[1], 1.0]}),
+        ),
+    };
     let generator = concat!("citymesh ", env!("CARGO_PKG_VERSION"));
     let document = if vertex_count == 0 {
         json!({"asset": {"version": "2.0", "generator": generator},
@@ -104,7 +150,7 @@ pub fn write_glb(mesh: &Mesh, origin: GlbOrigin, buildings: &[String]) -> Vec<u8
             "asset": {"version": "2.0", "generator": generator},
             "scene": 0,
             "scenes": [{"name": "citymesh", "nodes": [0], "extras": extras}],
-            "nodes": [{"name": "citymesh", "mesh": 0}],
+            "nodes": [node],
             "meshes": [{"name": "citymesh", "primitives": primitives}],
             "materials": materials,
             "accessors": accessors,
@@ -120,8 +166,8 @@ pub fn write_glb(mesh: &Mesh, origin: GlbOrigin, buildings: &[String]) -> Vec<u8
     encode_glb(&document, bin)
 }
 
-/// The unit normal of a counter-clockwise triangle, mapped to glTF axes, or `None` when the
-/// triangle has no area.
+/// The unit normal of a counter-clockwise triangle in file axes, or `None` when the triangle has
+/// no area (in f64, or once its corners are rounded to f32).
 fn face_normal([a, b, c]: [[f64; 3]; 3]) -> Option<[f32; 3]> {
     let n = super::triangle_normal(a, b, c);
     let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
@@ -134,8 +180,11 @@ fn face_normal([a, b, c]: [[f64; 3]; 3]) -> Option<[f32; 3]> {
     if fa == fb || fb == fc || fa == fc {
         return None;
     }
-    let (e, north, up) = (n[0] / len, n[1] / len, n[2] / len);
-    Some([e as f32, up as f32, -north as f32])
+    Some([
+        (n[0] / len) as f32,
+        (n[1] / len) as f32,
+        (n[2] / len) as f32,
+    ])
 }
 
 /// Wraps a JSON document and a binary buffer into the GLB container.

@@ -9,7 +9,7 @@ mod glb;
 
 pub use check::{ClosedReport, check_closed};
 pub use colour::Rgb;
-pub use glb::{GlbOrigin, write_glb};
+pub use glb::{GlbOrigin, Placement, write_glb, write_glb_placed};
 
 /// The cross product `(b - a) x (c - a)`: the normal of a counter-clockwise triangle, with twice
 /// its area as length.

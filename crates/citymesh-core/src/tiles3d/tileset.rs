@@ -1,0 +1,74 @@
+//! The tileset JSON of a region with implicit quadtree tiling.
+
+use crate::geo::{GeoBbox, LocalFrame};
+use serde_json::{Value, json};
+
+/// Content tiles are at most this wide (metres).
+pub const LEAF_SIZE_M: f64 = 400.0;
+
+/// The shape of the implicit tree over a region.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImplicitLayout {
+    pub root: GeoBbox,
+    /// The level content is at (the deepest).
+    pub leaf_level: u8,
+    /// Heights of the region's bounding volume (metres).
+    pub min_height: f64,
+    pub max_height: f64,
+}
+
+impl ImplicitLayout {
+    /// Leaves at most [`LEAF_SIZE_M`] wide.
+    pub fn new(root: GeoBbox, min_height: f64, max_height: f64) -> Self {
+        let (lon, lat) = root.center();
+        let (mx, my) = LocalFrame::new(lon, lat, 0.0).metres_per_degree();
+        let side =
+            ((root.max_lon() - root.min_lon()) * mx).max((root.max_lat() - root.min_lat()) * my);
+        let leaf_level = (side / LEAF_SIZE_M).log2().ceil().clamp(0.0, 12.0) as u8;
+        Self {
+            root,
+            leaf_level,
+            min_height,
+            max_height,
+        }
+    }
+
+    pub fn available_levels(&self) -> u8 {
+        self.leaf_level + 1
+    }
+
+    /// The geometric error of the root: leaves get about 16 m, so clients refine to them within a
+    /// couple of kilometres.
+    pub fn root_error(&self) -> f64 {
+        16.0 * f64::from(1u32 << self.leaf_level)
+    }
+}
+
+/// The tileset; `prefix` is put before the content and subtree templates (relative URIs).
+pub fn tileset_json(layout: &ImplicitLayout, prefix: &str) -> Value {
+    let r = &layout.root;
+    let region = [
+        r.min_lon().to_radians(),
+        r.min_lat().to_radians(),
+        r.max_lon().to_radians(),
+        r.max_lat().to_radians(),
+        layout.min_height,
+        layout.max_height,
+    ];
+    json!({
+        "asset": {"version": "1.1", "generator": concat!("citymesh ", env!("CARGO_PKG_VERSION"))},
+        "geometricError": layout.root_error() * 2.0,
+        "root": {
+            "boundingVolume": {"region": region},
+            "refine": "REPLACE",
+            "geometricError": layout.root_error(),
+            "content": {"uri": format!("{prefix}content/{{level}}/{{x}}/{{y}}.glb")},
+            "implicitTiling": {
+                "subdivisionScheme": "QUADTREE",
+                "availableLevels": layout.available_levels(),
+                "subtreeLevels": layout.available_levels(),
+                "subtrees": {"uri": format!("{prefix}subtrees/{{level}}/{{x}}/{{y}}.subtree")}
+            }
+        }
+    })
+}

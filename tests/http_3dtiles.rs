@@ -1,0 +1,320 @@
+//! 3D Tiles over HTTP on the real Karlsruhe-Kirchfeld data: the tileset, the binary subtree
+//! checked against the 3D Tiles 1.1 layout, content glb that the validator accepts, and a known
+//! building corner decoded through the tileset's transforms back onto its OSM node.
+
+mod common;
+
+use axum::http::StatusCode;
+use citymesh_core::building::set::BuildingSet;
+use citymesh_core::geo::{GeoBbox, ecef_to_geodetic, geodetic_to_ecef};
+use citymesh_core::osm::read_buildings;
+use common::{app_with, assert_valid_glb, data_dir, dem_dir, get, osm_bytes};
+use serde_json::Value;
+use std::collections::HashSet;
+
+async fn app(db: &tempfile::TempDir) -> axum::Router {
+    let file = data_dir().join("osm/karlsruhe-kirchfeld.osm.pbf");
+    app_with(
+        &dem_dir(),
+        &db.path().join("c.sqlite"),
+        &["--osm", file.to_str().unwrap()],
+    )
+    .await
+}
+
+/// Morton index written out here, bit by bit (x in even bits, y in odd ones).
+fn morton(x: u32, y: u32) -> usize {
+    let mut m = 0usize;
+    for b in 0..16 {
+        m |= (((x >> b) & 1) as usize) << (2 * b);
+        m |= (((y >> b) & 1) as usize) << (2 * b + 1);
+    }
+    m
+}
+
+struct Subtree {
+    json: Value,
+    binary: Vec<u8>,
+}
+
+/// Parses a subtree file, checking the header and the 8-byte alignment the spec requires.
+fn parse_subtree(bytes: &[u8]) -> Subtree {
+    assert_eq!(&bytes[0..4], b"subt", "magic");
+    assert_eq!(
+        u32::from_le_bytes(bytes[4..8].try_into().unwrap()),
+        1,
+        "version"
+    );
+    let json_len = u64::from_le_bytes(bytes[8..16].try_into().unwrap()) as usize;
+    let bin_len = u64::from_le_bytes(bytes[16..24].try_into().unwrap()) as usize;
+    assert_eq!(json_len % 8, 0, "JSON chunk padded to 8 bytes");
+    assert_eq!(bin_len % 8, 0, "binary chunk padded to 8 bytes");
+    assert_eq!(bytes.len(), 24 + json_len + bin_len);
+    let json: Value = serde_json::from_slice(&bytes[24..24 + json_len]).unwrap();
+    let binary = bytes[24 + json_len..].to_vec();
+    if let Some(views) = json["bufferViews"].as_array() {
+        assert_eq!(json["buffers"][0]["byteLength"], bin_len);
+        for v in views {
+            assert_eq!(
+                v["byteOffset"].as_u64().unwrap() % 8,
+                0,
+                "bufferView aligned to 8"
+            );
+        }
+    }
+    Subtree { json, binary }
+}
+
+/// The bits of an availability entry (a bitstream or a constant), `count` of them.
+fn bits(s: &Subtree, entry: &Value, count: usize) -> Vec<bool> {
+    if let Some(c) = entry.get("constant") {
+        return vec![c == 1; count];
+    }
+    let view = &s.json["bufferViews"][entry["bitstream"].as_u64().unwrap() as usize];
+    let offset = view["byteOffset"].as_u64().unwrap() as usize;
+    let out: Vec<bool> = (0..count)
+        .map(|i| s.binary[offset + i / 8] >> (i % 8) & 1 == 1)
+        .collect();
+    assert_eq!(
+        out.iter().filter(|b| **b).count() as u64,
+        entry["availableCount"].as_u64().unwrap()
+    );
+    out
+}
+
+#[tokio::test]
+async fn the_tileset_subtree_and_content_follow_3d_tiles_1_1() {
+    let db = tempfile::tempdir().unwrap();
+    let app = app(&db).await;
+    let t = get(&app, "/3dtiles/tileset.json").await;
+    assert_eq!(t.status, StatusCode::OK);
+    let tileset = t.json();
+    assert_eq!(tileset["asset"]["version"], "1.1");
+    let root = &tileset["root"];
+    let implicit = &root["implicitTiling"];
+    assert_eq!(implicit["subdivisionScheme"], "QUADTREE");
+    let levels = implicit["availableLevels"].as_u64().unwrap() as u8;
+    assert_eq!(implicit["subtreeLevels"], levels);
+    let region: Vec<f64> = root["boundingVolume"]["region"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    // The buildings' extent (data README: 8.3877,49.0390 - 8.4039,49.0640), in radians.
+    let set = BuildingSet::new(
+        read_buildings(&osm_bytes("karlsruhe-kirchfeld.osm.pbf"))
+            .unwrap()
+            .buildings,
+    );
+    let extent = set.extent().unwrap();
+    assert!((region[0] - extent.min_lon().to_radians()).abs() < 1e-12);
+    assert!((region[3] - extent.max_lat().to_radians()).abs() < 1e-12);
+    // Karlsruhe's ground is about 110-120 m; the tallest building reaches above it.
+    assert!(region[4] < 110.0 && region[5] > 130.0, "{region:?}");
+    let content_uri = root["content"]["uri"].as_str().unwrap();
+    let subtree_uri = implicit["subtrees"]["uri"].as_str().unwrap();
+    assert!(content_uri.ends_with("content/{level}/{x}/{y}.glb"));
+
+    let subtree_path = format!(
+        "/3dtiles/{}",
+        subtree_uri
+            .replace("{level}", "0")
+            .replace("{x}", "0")
+            .replace("{y}", "0")
+    );
+    let s = parse_subtree(&get(&app, &subtree_path).await.body);
+    let leaf = levels - 1;
+    // Expected content: the leaves holding a cluster's representative point.
+    let root_box = GeoBbox::new(
+        region[0].to_degrees(),
+        region[1].to_degrees(),
+        region[2].to_degrees(),
+        region[3].to_degrees(),
+    )
+    .unwrap();
+    let n = 1u32 << leaf;
+    let mut expected = HashSet::new();
+    for c in set.clusters() {
+        let (lon, lat) = c.representative_point();
+        let fx = (lon - root_box.min_lon()) / (root_box.max_lon() - root_box.min_lon());
+        let fy = (lat - root_box.min_lat()) / (root_box.max_lat() - root_box.min_lat());
+        let cell = |f: f64| ((f * f64::from(n)).floor() as u32).min(n - 1);
+        expected.insert((cell(fx), cell(fy)));
+    }
+    // Tile bits: levels 0..levels, each 4^l bits in Morton order, one after another.
+    let total: usize = (0..levels).map(|l| 1usize << (2 * l)).sum();
+    let tiles = bits(&s, &s.json["tileAvailability"], total);
+    let contents = bits(&s, &s.json["contentAvailability"][0], total);
+    let leaf_offset: usize = (0..leaf).map(|l| 1usize << (2 * l)).sum();
+    for y in 0..n {
+        for x in 0..n {
+            let i = leaf_offset + morton(x, y);
+            assert_eq!(
+                contents[i],
+                expected.contains(&(x, y)),
+                "content bit of {leaf}/{x}/{y}"
+            );
+            assert_eq!(
+                tiles[i],
+                expected.contains(&(x, y)),
+                "tile bit of {leaf}/{x}/{y}"
+            );
+        }
+    }
+    assert!(tiles[0], "the root is available");
+    assert!(
+        contents[..leaf_offset].iter().all(|b| !b),
+        "content only at the leaves"
+    );
+    // One subtree holds every level: no child subtrees.
+    assert_eq!(s.json["childSubtreeAvailability"]["constant"], 0);
+
+    // Every content tile the subtree announces is there and valid; others are not.
+    for &(x, y) in &expected {
+        let uri = content_uri
+            .replace("{level}", &leaf.to_string())
+            .replace("{x}", &x.to_string())
+            .replace("{y}", &y.to_string());
+        let c = get(&app, &format!("/3dtiles/{uri}")).await;
+        assert_eq!(c.status, StatusCode::OK, "{uri}");
+        assert_valid_glb(&c.body);
+    }
+    let missing = (0..n)
+        .flat_map(|x| (0..n).map(move |y| (x, y)))
+        .find(|k| !expected.contains(k));
+    if let Some((x, y)) = missing {
+        let uri = content_uri
+            .replace("{level}", &leaf.to_string())
+            .replace("{x}", &x.to_string())
+            .replace("{y}", &y.to_string());
+        assert_eq!(
+            get(&app, &format!("/3dtiles/{uri}")).await.status,
+            StatusCode::NOT_FOUND
+        );
+    }
+}
+
+/// Positions of a content glb mapped to ECEF through its node matrix and the 3D Tiles y-up to
+/// z-up transform, with the material of each.
+fn ecef_positions(glb: &[u8]) -> Vec<([f64; 3], String)> {
+    let gltf = gltf::Gltf::from_slice(glb).unwrap();
+    let blob = gltf.blob.as_deref().unwrap();
+    let node = gltf.nodes().next().unwrap();
+    // The matrix as the JSON has it, in f64 (the gltf crate gives f32, which cannot hold ECEF
+    // translations to the centimetre; 3D Tiles clients read doubles).
+    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let doc: Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
+    let flat: Vec<f64> = doc["nodes"][0]["matrix"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    let m: Vec<[f64; 4]> = flat.chunks(4).map(|c| [c[0], c[1], c[2], c[3]]).collect();
+    let mut out = Vec::new();
+    for prim in node.mesh().unwrap().primitives() {
+        let material = prim.material().name().unwrap_or_default().to_owned();
+        for p in prim.reader(|_| Some(blob)).read_positions().unwrap() {
+            let p = p.map(f64::from);
+            // glTF node matrix (column-major), then y-up to z-up: (x, y, z) -> (x, -z, y).
+            let q: Vec<f64> = (0..3)
+                .map(|r| m[0][r] * p[0] + m[1][r] * p[1] + m[2][r] * p[2] + m[3][r])
+                .collect();
+            out.push(([q[0], -q[2], q[1]], material.clone()));
+        }
+    }
+    out
+}
+
+#[tokio::test]
+async fn a_known_building_corner_decodes_onto_its_osm_node() {
+    let db = tempfile::tempdir().unwrap();
+    let app = app(&db).await;
+    let tileset = get(&app, "/3dtiles/tileset.json").await.json();
+    let root = &tileset["root"];
+    let levels = root["implicitTiling"]["availableLevels"].as_u64().unwrap() as u32;
+    let region: Vec<f64> = root["boundingVolume"]["region"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap().to_degrees())
+        .collect();
+    // Way 239725761 (Erna-Scheffler-Straße 6), its first node.
+    let b = read_buildings(&osm_bytes("karlsruhe-kirchfeld.osm.pbf")).unwrap();
+    let record = b
+        .buildings
+        .iter()
+        .find(|r| r.id.to_string() == "way/239725761")
+        .unwrap();
+    let set = BuildingSet::new(b.buildings.clone());
+    let cluster = set
+        .clusters()
+        .iter()
+        .find(|c| set.cluster_records(c).iter().any(|r| r.id == record.id))
+        .unwrap();
+    let (lon, lat) = cluster.representative_point();
+    let n = 1u32 << (levels - 1);
+    let cell = |v: f64, lo: f64, hi: f64| {
+        (((v - lo) / (hi - lo) * f64::from(n)).floor() as u32).min(n - 1)
+    };
+    let (x, y) = (
+        cell(lon, region[0], region[2]),
+        cell(lat, region[1], region[3]),
+    );
+    let uri = root["content"]["uri"]
+        .as_str()
+        .unwrap()
+        .replace("{level}", &(levels - 1).to_string())
+        .replace("{x}", &x.to_string())
+        .replace("{y}", &y.to_string());
+    let glb = get(&app, &format!("/3dtiles/{uri}")).await;
+    assert_eq!(glb.status, StatusCode::OK);
+    let positions = ecef_positions(&glb.body);
+
+    let node = record.outers[0].nodes[0];
+    let target = geodetic_to_ecef(node.lon, node.lat, 0.0);
+    // The wall vertices above that corner: closest horizontally to the node.
+    let dist = |p: &[f64; 3]| {
+        let (plon, plat, _) = ecef_to_geodetic(*p);
+        let q = geodetic_to_ecef(plon, plat, 0.0);
+        ((q[0] - target[0]).powi(2) + (q[1] - target[1]).powi(2) + (q[2] - target[2]).powi(2))
+            .sqrt()
+    };
+    let corner: Vec<&([f64; 3], String)> = positions
+        .iter()
+        .filter(|(p, m)| m == "wall" && dist(p) < 0.05)
+        .collect();
+    let nearest = positions
+        .iter()
+        .map(|(p, _)| dist(p))
+        .fold(f64::MAX, f64::min);
+    assert!(
+        !corner.is_empty(),
+        "no wall vertex within 5 cm of the OSM node (the nearest is {nearest} m away)"
+    );
+    // Its lowest point is the floor: the lowest ground along the outline (METHOD.md section 3).
+    let floor = corner
+        .iter()
+        .map(|(p, _)| ecef_to_geodetic(*p).2)
+        .fold(f64::MAX, f64::min);
+    let model = common_dem_model();
+    let ring: Vec<(f64, f64)> = record.outers[0]
+        .nodes
+        .iter()
+        .map(|n| (n.lon, n.lat))
+        .collect();
+    let (elev_min, _) = model.height_range_along(&ring);
+    assert!(
+        (floor - elev_min).abs() < 0.05,
+        "floor {floor}, Elev_min {elev_min}"
+    );
+    assert!(floor <= model.ground_height(node.lon, node.lat) + 0.05);
+}
+
+fn common_dem_model() -> citymesh_core::terrain::ElevationModel {
+    let bytes = std::fs::read(dem_dir().join("N49E008.hgt")).unwrap();
+    citymesh_core::terrain::ElevationModel::new(vec![std::sync::Arc::new(
+        citymesh_core::terrain::HgtTile::from_bytes(49, 8, &bytes).unwrap(),
+    )])
+}
