@@ -63,7 +63,7 @@ pub fn write_subtree(
         match a {
             Availability::Constant(c) => json!({"constant": u8::from(c)}),
             Availability::Bits(bytes, count) => {
-                while binary.len() % 8 != 0 {
+                while !binary.len().is_multiple_of(8) {
                     binary.push(0);
                 }
                 views.push(
@@ -77,7 +77,7 @@ pub fn write_subtree(
     let tile_entry = entry(availability(&tiles));
     let content_entry = entry(availability(&contents));
     let child_entry = entry(availability(&children));
-    while binary.len() % 8 != 0 {
+    while !binary.len().is_multiple_of(8) {
         binary.push(0);
     }
     let mut doc = json!({
@@ -90,7 +90,7 @@ pub fn write_subtree(
         doc["bufferViews"] = Value::Array(views);
     }
     let mut json = serde_json::to_vec(&doc).unwrap_or_default();
-    while json.len() % 8 != 0 {
+    while !json.len().is_multiple_of(8) {
         json.push(b' ');
     }
     let mut out = Vec::with_capacity(24 + json.len() + binary.len());
