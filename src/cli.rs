@@ -134,6 +134,11 @@ pub struct ServeArgs {
     #[arg(long, env = "CITYMESH_REQUEST_TIMEOUT_S", default_value_t = 120.0)]
     pub request_timeout_s: f64,
 
+    /// Directory of the npm packages the pages use (three, 3d-tiles-renderer, cesium), as
+    /// `npm ci` installs them; served under /vendor/.
+    #[arg(long, env = "CITYMESH_ASSETS_DIR", default_value = "node_modules")]
+    pub assets_dir: PathBuf,
+
     /// Log filter: error, warn, info, debug, trace, or a tracing directive like `citymesh=debug`.
     #[arg(long, env = "CITYMESH_LOG_LEVEL", default_value = "info")]
     pub log_level: String,

@@ -137,6 +137,7 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         },
         generations: Arc::new(Semaphore::new(slots)),
         demo,
+        assets_dir: args.assets_dir.clone(),
         limits: Limits {
             max_bbox_km2: args.max_bbox_km2,
             min_zoom: args.min_zoom,

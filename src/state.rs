@@ -37,4 +37,6 @@ pub struct AppState {
     pub geojson_limits: citymesh_core::geojson::GeoJsonLimits,
     /// No data is configured: the buildings are the procedural demo city.
     pub demo: bool,
+    /// Where the pages' npm packages are (`node_modules`), served under `/vendor/`.
+    pub assets_dir: std::path::PathBuf,
 }

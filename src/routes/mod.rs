@@ -3,8 +3,8 @@
 
 mod conditional;
 mod health;
-mod index;
 mod metrics;
+mod pages;
 mod procedural;
 mod scene;
 mod scene_stats;
@@ -20,6 +20,7 @@ use axum::routing::get;
 use tower_http::compression::CompressionLayer;
 use tower_http::compression::predicate::{NotForContentType, Predicate, SizeAbove};
 use tower_http::cors::{Any, CorsLayer};
+use tower_http::services::ServeDir;
 use tower_http::trace::TraceLayer;
 use utoipa::OpenApi;
 use utoipa_swagger_ui::SwaggerUi;
@@ -50,6 +51,7 @@ pub fn openapi_json() -> String {
 
 /// The whole application, ready to serve or to call in tests with `oneshot`.
 pub fn app(state: AppState) -> Router {
+    let assets = state.assets_dir.clone();
     // Browsers on other origins (CesiumJS and three.js apps) may fetch everything and read the
     // figures and validators.
     let cors = CorsLayer::new()
@@ -65,7 +67,19 @@ pub fn app(state: AppState) -> Router {
             .and(NotForContentType::IMAGES),
     );
     Router::new()
-        .route("/", get(index::index))
+        .route("/", get(pages::viewer))
+        .route("/viewer.js", get(pages::viewer_js))
+        .route("/cesium", get(pages::cesium))
+        .route("/3dtiles-renderer", get(pages::tiles_renderer))
+        .nest_service("/vendor/three", ServeDir::new(assets.join("three")))
+        .nest_service(
+            "/vendor/3d-tiles-renderer",
+            ServeDir::new(assets.join("3d-tiles-renderer")),
+        )
+        .nest_service(
+            "/vendor/cesium",
+            ServeDir::new(assets.join("cesium/Build/Cesium")),
+        )
         .route("/health", get(health::health))
         .route("/metrics", get(metrics::metrics))
         .route(

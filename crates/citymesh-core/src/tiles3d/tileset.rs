@@ -37,10 +37,15 @@ impl ImplicitLayout {
         self.leaf_level + 1
     }
 
-    /// The geometric error of the root: leaves get about 16 m, so clients refine to them within a
-    /// couple of kilometres.
+    /// The geometric error of the root. Only the leaves have content (there are no coarser
+    /// meshes), so the errors are large enough that clients refine to the leaves whenever the
+    /// region is in view: the root's is the region's size, and the leaves' that over 2^levels.
     pub fn root_error(&self) -> f64 {
-        16.0 * f64::from(1u32 << self.leaf_level)
+        let (lon, lat) = self.root.center();
+        let (mx, my) = LocalFrame::new(lon, lat, 0.0).metres_per_degree();
+        let w = (self.root.max_lon() - self.root.min_lon()) * mx;
+        let h = (self.root.max_lat() - self.root.min_lat()) * my;
+        4.0 * w.hypot(h)
     }
 }
 

@@ -1,0 +1,59 @@
+//! The pages people open: the three.js viewer at `/`, CesiumJS at `/cesium`, and
+//! 3d-tiles-renderer at `/3dtiles-renderer`. Their JavaScript libraries come from npm
+//! (`npm ci` installs them) and are served by citymesh under `/vendor/`, so they work with no
+//! internet; the viewer falls back to a CDN when they are not installed.
+
+use crate::osm::OsmSource;
+use crate::state::AppState;
+use axum::extract::State;
+use axum::http::{HeaderValue, header};
+use axum::response::{Html, IntoResponse, Response};
+use citymesh_core::procedural::{DEFAULT_LAT, DEFAULT_LON};
+
+const VIEWER_HTML: &str = include_str!("pages/viewer.html");
+const VIEWER_JS: &str = include_str!("pages/viewer.js");
+const CESIUM_HTML: &str = include_str!("pages/cesium.html");
+const TILES_RENDERER_HTML: &str = include_str!("pages/tiles3d-renderer.html");
+
+/// The three.js viewer; `?lon=&lat=&zoom=&radius=` choose the place (default: the served
+/// buildings' centre, or the demo city).
+pub async fn viewer(State(state): State<AppState>) -> Html<String> {
+    let (lon, lat) = match state.osm.as_ref() {
+        OsmSource::Files(data) => data
+            .set
+            .extent()
+            .map_or((DEFAULT_LON, DEFAULT_LAT), |b| b.center()),
+        OsmSource::Tiles(_) => (DEFAULT_LON, DEFAULT_LAT),
+    };
+    // three.js from this server when npm installed it, else from a CDN.
+    let three = if state
+        .assets_dir
+        .join("three/build/three.module.js")
+        .is_file()
+    {
+        "/vendor/three/"
+    } else {
+        "https://cdn.jsdelivr.net/npm/three@0.187.0/"
+    };
+    let defaults = serde_json::json!({"lon": lon, "lat": lat, "zoom": 16, "three": three});
+    Html(VIEWER_HTML.replace("__DEFAULTS__", &defaults.to_string()))
+}
+
+pub async fn viewer_js() -> Response {
+    (
+        [(
+            header::CONTENT_TYPE,
+            HeaderValue::from_static("text/javascript; charset=utf-8"),
+        )],
+        VIEWER_JS,
+    )
+        .into_response()
+}
+
+pub async fn cesium() -> Html<&'static str> {
+    Html(CESIUM_HTML)
+}
+
+pub async fn tiles_renderer() -> Html<&'static str> {
+    Html(TILES_RENDERER_HTML)
+}

@@ -1,0 +1,142 @@
+// Browser tests: Debian's Chromium (headless, WebGL through SwiftShader) driven by playwright-core
+// opens citymesh's pages on the Karlsruhe data and on the demo city, waits for tiles, and checks:
+// no page errors or failed requests, buildings visible (the screenshot differs from an empty
+// scene where the city is), and the 3D Tiles load in CesiumJS and in 3d-tiles-renderer with its
+// ImplicitTilingPlugin. Screenshots go to artifacts/browser/.
+//
+// Usage: node tests/browser/run.mjs   (after `cargo build --release`; reads ../shared/data or
+// $CITYMESH_DATA_DIR). Prints "N passed, M failed" and exits 1 on any failure.
+import { chromium } from 'playwright-core';
+import { PNG } from 'pngjs';
+import { spawn } from 'node:child_process';
+import { mkdirSync, existsSync } from 'node:fs';
+import { resolve, dirname } from 'node:path';
+import { fileURLToPath } from 'node:url';
+
+const root = resolve(dirname(fileURLToPath(import.meta.url)), '../..');
+const data = resolve(process.env.CITYMESH_DATA_DIR ?? resolve(root, '../shared/data'));
+const bin = resolve(root, 'target/release/citymesh');
+const artifacts = resolve(root, 'artifacts/browser');
+mkdirSync(artifacts, { recursive: true });
+const chromiumPath = process.env.CHROMIUM ?? '/usr/bin/chromium';
+if (!existsSync(bin)) { console.error(`${bin} is missing: run cargo build --release`); process.exit(2); }
+if (!existsSync(chromiumPath)) { console.error(`${chromiumPath} is missing: apt-get install chromium`); process.exit(2); }
+
+function startServer(name, args) {
+  return new Promise((ok, fail) => {
+    const child = spawn(bin, ['serve', '--listen', '127.0.0.1:0', '--cache-db', ':memory:', '--log-level', 'info', ...args],
+      { cwd: root, stdio: ['ignore', 'pipe', 'inherit'] });
+    let out = '';
+    const timer = setTimeout(() => fail(new Error(`${name}: no "listening" line`)), 30000);
+    child.stdout.on('data', (d) => {
+      out += d;
+      const m = out.match(/listening on (http:\/\/[0-9.:]+)\//);
+      if (m) { clearTimeout(timer); ok({ url: m[1], child }); }
+    });
+    child.on('exit', (code) => fail(new Error(`${name}: exited with ${code}`)));
+  });
+}
+
+/** Mean absolute difference of two PNG screenshots inside a central box (fractions of size). */
+function difference(a, b, box = [0.25, 0.25, 0.75, 0.75]) {
+  const A = PNG.sync.read(a), B = PNG.sync.read(b);
+  let sum = 0, n = 0;
+  for (let y = Math.floor(A.height * box[1]); y < A.height * box[3]; y++) {
+    for (let x = Math.floor(A.width * box[0]); x < A.width * box[2]; x++) {
+      const i = (y * A.width + x) * 4;
+      sum += Math.abs(A.data[i] - B.data[i]) + Math.abs(A.data[i + 1] - B.data[i + 1]) + Math.abs(A.data[i + 2] - B.data[i + 2]);
+      n++;
+    }
+  }
+  return sum / n / 3;
+}
+
+const browser = await chromium.launch({
+  executablePath: chromiumPath,
+  args: ['--headless=new', '--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
+    '--disable-background-networking', '--disable-component-update', '--disable-sync', '--no-first-run'],
+});
+let passed = 0, failed = 0;
+
+async function check(name, fn) {
+  try {
+    await fn();
+    passed++;
+    console.log(`test ${name} ... ok`);
+  } catch (e) {
+    failed++;
+    console.log(`test ${name} ... FAILED\n  ${e.stack ?? e}`);
+  }
+}
+
+/** Opens a page, records errors and failed requests, waits for `ready` (a JS expression). */
+async function open(url, ready, timeout = 120000) {
+  const page = await browser.newPage({ viewport: { width: 1000, height: 700 } });
+  const problems = [];
+  page.on('pageerror', (e) => problems.push(`page error: ${e.message}`));
+  page.on('requestfailed', (r) => problems.push(`request failed: ${r.url()} ${r.failure()?.errorText}`));
+  page.on('response', (r) => { if (r.status() >= 400) problems.push(`HTTP ${r.status()}: ${r.url()}`); });
+  page.on('console', (m) => { if (m.type() === 'error') problems.push(`console error: ${m.text()}`); });
+  await page.goto(url);
+  await page.waitForFunction(ready, null, { timeout, polling: 250 });
+  await page.waitForTimeout(500);
+  return { page, problems };
+}
+
+const servers = [];
+try {
+  const karlsruhe = await startServer('karlsruhe', ['--dem-dir', `${data}/dem`, '--osm', `${data}/osm/karlsruhe-kirchfeld.osm.pbf`]);
+  const demo = await startServer('demo', ['--dem-dir', resolve(root, 'target/no-dem')]);
+  servers.push(karlsruhe.child, demo.child);
+
+  for (const [name, server] of [['karlsruhe', karlsruhe], ['demo city', demo]]) {
+    await check(`viewer shows the buildings of ${name}`, async () => {
+      const full = await open(`${server.url}/`, 'window.citymeshViewer && window.citymeshViewer.ready');
+      const s = await full.page.evaluate(() => window.citymeshViewer);
+      if (s.tilesLoaded !== s.tilesWanted || s.tilesFailed) throw new Error(`tiles: ${JSON.stringify(s)}`);
+      const shot = await full.page.screenshot({ path: `${artifacts}/viewer-${name.replace(' ', '-')}.png` });
+      const empty = await open(`${server.url}/?empty`, 'window.citymeshViewer && window.citymeshViewer.ready');
+      const blank = await empty.page.screenshot({ path: `${artifacts}/viewer-${name.replace(' ', '-')}-empty.png` });
+      const diff = difference(shot, blank);
+      if (full.problems.length || empty.problems.length) throw new Error([...full.problems, ...empty.problems].join('\n'));
+      if (!(diff > 20)) throw new Error(`the city barely differs from an empty scene: ${diff.toFixed(1)}`);
+      console.log(`  ${s.tilesLoaded} tiles; mean difference from the empty scene ${diff.toFixed(1)}`);
+      await full.page.close(); await empty.page.close();
+    });
+
+    await check(`CesiumJS loads the 3D Tiles of ${name}`, async () => {
+      const c = await open(`${server.url}/cesium`, 'window.citymeshCesium && (window.citymeshCesium.ready || window.citymeshCesium.errors.length)', 180000);
+      const s = await c.page.evaluate(() => window.citymeshCesium);
+      const shot = await c.page.screenshot({ path: `${artifacts}/cesium-${name.replace(' ', '-')}.png` });
+      if (s.errors.length) throw new Error(s.errors.join('\n'));
+      if (c.problems.length) throw new Error(c.problems.join('\n'));
+      if (!(s.tilesLoaded > 0)) throw new Error('no tile loaded');
+      // The globe alone is one flat colour: the city adds contrast in the middle.
+      const img = PNG.sync.read(shot);
+      const colours = new Set();
+      for (let i = 0; i < img.data.length; i += 4 * 97) colours.add((img.data[i] >> 3) << 10 | (img.data[i + 1] >> 3) << 5 | img.data[i + 2] >> 3);
+      if (colours.size < 20) throw new Error(`the view is nearly uniform (${colours.size} colours)`);
+      console.log(`  ${s.tilesLoaded} tiles loaded; ${colours.size} colours`);
+      await c.page.close();
+    });
+
+    await check(`3d-tiles-renderer loads the 3D Tiles of ${name} with ImplicitTilingPlugin`, async () => {
+      const t = await open(`${server.url}/3dtiles-renderer`, 'window.citymeshTilesRenderer && (window.citymeshTilesRenderer.ready || window.citymeshTilesRenderer.errors.length)');
+      const s = await t.page.evaluate(() => window.citymeshTilesRenderer);
+      await t.page.screenshot({ path: `${artifacts}/3dtiles-renderer-${name.replace(' ', '-')}.png` });
+      if (s.errors.length) throw new Error(s.errors.join('\n'));
+      if (t.problems.length) throw new Error(t.problems.join('\n'));
+      if (!(s.modelsLoaded > 0)) throw new Error('no model loaded');
+      console.log(`  ${s.modelsLoaded} models loaded`);
+      await t.page.close();
+    });
+  }
+} catch (e) {
+  failed++;
+  console.log(`browser tests could not run: ${e.stack ?? e}`);
+} finally {
+  await browser.close();
+  for (const s of servers) s.kill('SIGTERM');
+}
+console.log(`${passed} passed, ${failed} failed`);
+process.exit(failed ? 1 : 0);
