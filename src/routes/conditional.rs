@@ -40,6 +40,32 @@ pub fn glb_response(
     (headers, glb).into_response()
 }
 
+/// A freshly generated GLB, with its figures in the headers.
+pub fn generated_response(
+    request: &HeaderMap,
+    generated: crate::generate::Generated,
+    cache_control: &'static str,
+) -> Response {
+    let etag = crate::tile_cache::etag_of(&generated.glb);
+    let headers = crate::generate::glb_headers(Some(&generated.stats));
+    glb_response(request, generated.glb, etag, headers, cache_control)
+}
+
+/// A tile from the tile cache, saying which level it came from.
+pub fn cached_response(
+    request: &HeaderMap,
+    cached: crate::tile_cache::CachedTile,
+    level: crate::tile_cache::CacheLevel,
+    cache_control: &'static str,
+) -> Response {
+    let mut headers = crate::generate::glb_headers(cached.generated.as_deref());
+    headers.insert(
+        axum::http::HeaderName::from_static("x-citymesh-cache"),
+        HeaderValue::from_static(level.header()),
+    );
+    glb_response(request, cached.glb, cached.etag, headers, cache_control)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -2,9 +2,9 @@
 //! definitions (GeoJSON with OSM-style properties) or as the mesh the same generator builds from
 //! them (on flat ground, or the DEM where one covers the place).
 
-use super::conditional::glb_response;
+use super::conditional::{generated_response, glb_response};
 use crate::error::{AppError, ErrorBody};
-use crate::generate::{Area, generate, glb_headers};
+use crate::generate::{Area, generate};
 use crate::state::AppState;
 use crate::tile_cache::etag_of;
 use axum::extract::rejection::QueryRejection;
@@ -176,12 +176,9 @@ pub async fn procedural_glb(
     let bbox = city.bbox;
     let set = tokio::task::spawn_blocking(move || Arc::new(BuildingSet::new(city.records))).await?;
     let generated = generate(&state, Area::Buildings { bbox, set }).await?;
-    let etag = etag_of(&generated.glb);
-    Ok(glb_response(
+    Ok(generated_response(
         &request_headers,
-        generated.glb,
-        etag,
-        glb_headers(Some(&generated.stats)),
+        generated,
         "public, max-age=3600",
     ))
 }

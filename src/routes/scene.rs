@@ -1,10 +1,9 @@
 //! `GET /scene.glb?bbox=`: the mesh of an area.
 
-use super::conditional::glb_response;
+use super::conditional::generated_response;
 use crate::error::{AppError, ErrorBody};
-use crate::generate::{Area, generate, glb_headers};
+use crate::generate::{Area, generate};
 use crate::state::AppState;
-use crate::tile_cache::etag_of;
 use axum::extract::rejection::QueryRejection;
 use axum::extract::{Query, State};
 use axum::http::HeaderMap;
@@ -59,12 +58,9 @@ pub async fn scene_glb(
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
     let bbox = parse_bbox(query.bbox.as_deref(), state.limits.max_bbox_km2)?;
     let generated = generate(&state, Area::Scene(bbox)).await?;
-    let etag = etag_of(&generated.glb);
-    Ok(glb_response(
+    Ok(generated_response(
         &request_headers,
-        generated.glb,
-        etag,
-        glb_headers(Some(&generated.stats)),
+        generated,
         "public, max-age=300",
     ))
 }

@@ -2,11 +2,10 @@
 //! FeatureCollection, built by the same generator as OSM data and placed on the DEM where one
 //! covers it. This is how a user fixes a wrong roof shape in real data and rebuilds.
 
-use super::conditional::glb_response;
+use super::conditional::generated_response;
 use crate::error::{AppError, ErrorBody};
-use crate::generate::{Area, generate, glb_headers};
+use crate::generate::{Area, generate};
 use crate::state::AppState;
-use crate::tile_cache::etag_of;
 use axum::body::Body;
 use axum::extract::State;
 use axum::http::{HeaderMap, StatusCode, header};
@@ -125,14 +124,7 @@ pub async fn post_scene(
     let set =
         tokio::task::spawn_blocking(move || Arc::new(BuildingSet::new(scene.records))).await?;
     let generated = generate(&state, Area::Buildings { bbox, set }).await?;
-    let etag = etag_of(&generated.glb);
-    Ok(glb_response(
-        &request_headers,
-        generated.glb,
-        etag,
-        glb_headers(Some(&generated.stats)),
-        "no-store",
-    ))
+    Ok(generated_response(&request_headers, generated, "no-store"))
 }
 
 /// The features' extent grown by [`MARGIN_M`].

@@ -1,12 +1,12 @@
 //! `GET /tiles/{z}/{x}/{y}.glb`: Web Mercator XYZ tiles, kept in the SQLite tile cache.
 
-use super::conditional::glb_response;
+use super::conditional::cached_response;
 use crate::error::{AppError, ErrorBody};
-use crate::generate::{Area, generate, glb_headers};
+use crate::generate::{Area, generate};
 use crate::state::AppState;
 use axum::extract::rejection::PathRejection;
 use axum::extract::{Path, State};
-use axum::http::{HeaderMap, HeaderName, HeaderValue};
+use axum::http::HeaderMap;
 use axum::response::Response;
 use citymesh_core::geo::TileCoord;
 
@@ -62,16 +62,10 @@ pub async fn tile_glb(
             Ok((g.glb, g.stats))
         })
         .await?;
-    let mut headers = glb_headers(cached.generated.as_deref());
-    headers.insert(
-        HeaderName::from_static("x-citymesh-cache"),
-        HeaderValue::from_static(level.header()),
-    );
-    Ok(glb_response(
+    Ok(cached_response(
         &request_headers,
-        cached.glb,
-        cached.etag,
-        headers,
+        cached,
+        level,
         TILE_CACHE_CONTROL,
     ))
 }

@@ -2,16 +2,16 @@
 //! `?bbox=`), and the binary subtrees and ECEF glb content its implicit quadtree names, generated
 //! on demand through the same caches as the XYZ tiles.
 
-use super::conditional::glb_response;
+use super::conditional::cached_response;
 use super::scene::parse_bbox;
 use crate::error::{AppError, ErrorBody};
-use crate::generate::{Area, generate, glb_headers, implicit_bbox};
+use crate::generate::{Area, generate, implicit_bbox};
 use crate::osm::OsmSource;
 use crate::state::AppState;
 use axum::Json;
 use axum::extract::rejection::{PathRejection, QueryRejection};
 use axum::extract::{Path, Query, State};
-use axum::http::{HeaderMap, HeaderName, HeaderValue, header};
+use axum::http::{HeaderMap, header};
 use axum::response::{IntoResponse, Response};
 use citymesh_core::building::tags::parse_length;
 use citymesh_core::geo::{GeoBbox, ImplicitTile, TileCoord};
@@ -237,16 +237,10 @@ pub async fn content(
             Ok((g.glb, g.stats))
         })
         .await?;
-    let mut headers = glb_headers(cached.generated.as_deref());
-    headers.insert(
-        HeaderName::from_static("x-citymesh-cache"),
-        HeaderValue::from_static(level.header()),
-    );
-    Ok(glb_response(
+    Ok(cached_response(
         &request_headers,
-        cached.glb,
-        cached.etag,
-        headers,
+        cached,
+        level,
         "public, max-age=3600",
     ))
 }
