@@ -454,18 +454,16 @@ async fn an_import_that_changes_data_drops_exactly_the_tiles_over_it() {
     );
 }
 
+/// `scenes[0].extras` of a GLB.
+fn scene_extras(gltf: &gltf::Gltf) -> Value {
+    let raw = gltf.default_scene().unwrap().extras().clone().unwrap();
+    serde_json::from_str(raw.get()).unwrap()
+}
+
 /// Ground vertices (lon, lat, height) of a GLB's `ground` primitive.
 fn ground_vertices(glb: &[u8]) -> Vec<[f64; 3]> {
     let gltf = gltf::Gltf::from_slice(glb).unwrap();
-    let extras: Value = serde_json::from_str(
-        gltf.default_scene()
-            .unwrap()
-            .extras()
-            .as_ref()
-            .unwrap()
-            .get(),
-    )
-    .unwrap();
+    let extras = scene_extras(&gltf);
     let o = &extras["origin"];
     let frame = LocalFrame::new(
         o["lon"].as_f64().unwrap(),
@@ -491,15 +489,7 @@ fn ground_vertices(glb: &[u8]) -> Vec<[f64; 3]> {
 
 fn building_ids(glb: &[u8]) -> Vec<String> {
     let gltf = gltf::Gltf::from_slice(glb).unwrap();
-    let extras: Value = serde_json::from_str(
-        gltf.default_scene()
-            .unwrap()
-            .extras()
-            .as_ref()
-            .unwrap()
-            .get(),
-    )
-    .unwrap();
+    let extras = scene_extras(&gltf);
     extras["buildings"]
         .as_array()
         .unwrap()

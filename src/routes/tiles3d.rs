@@ -57,15 +57,35 @@ fn root_for(state: &AppState, text: Option<&str>) -> Result<GeoBbox, AppError> {
     }
 }
 
-/// The tree over a region, its height range from the DEM and the buildings, and which leaves
-/// have content (buildings whose cluster's representative point they hold).
-async fn layout(
+/// The leaves at `leaf_level` that have content: those holding a cluster's representative point.
+async fn content_leaves(
     state: &AppState,
     root: GeoBbox,
-) -> Result<(ImplicitLayout, HashSet<(u32, u32)>), AppError> {
+    leaf_level: u8,
+) -> Result<HashSet<(u32, u32)>, AppError> {
+    let buildings = state.osm.area(&root).await?;
+    let leaves = tokio::task::spawn_blocking(move || {
+        buildings
+            .set
+            .clusters_intersecting(&root)
+            .iter()
+            .map(|c| c.representative_point())
+            .filter(|(lon, lat)| root.contains(*lon, *lat))
+            .map(|(lon, lat)| {
+                let t = ImplicitTile::containing(&root, leaf_level, lon, lat);
+                (t.x, t.y)
+            })
+            .collect()
+    })
+    .await?;
+    Ok(leaves)
+}
+
+/// The tree over a region with its height range from the DEM and the tallest building.
+async fn layout(state: &AppState, root: GeoBbox) -> Result<ImplicitLayout, AppError> {
     let buildings = state.osm.area(&root).await?;
     let dem = state.dem.clone();
-    let result = tokio::task::spawn_blocking(move || {
+    let layout = tokio::task::spawn_blocking(move || {
         let model = dem.lookup(&root).model;
         let (mut lo, mut hi) = (f64::MAX, f64::MIN);
         for i in 0..=32 {
@@ -78,26 +98,28 @@ async fn layout(
             }
         }
         let set = &buildings.set;
-        let clusters = set.clusters_intersecting(&root);
-        let tallest = clusters
+        let tallest = set
+            .clusters_intersecting(&root)
             .iter()
             .flat_map(|c| set.cluster_records(c))
             .filter_map(|r| r.tags.get("height").and_then(|h| parse_length(h)))
             .fold(60.0f64, f64::max);
-        let layout = ImplicitLayout::new(root, lo - 20.0, hi + tallest + 20.0);
-        let leaves: HashSet<(u32, u32)> = clusters
-            .iter()
-            .map(|c| c.representative_point())
-            .filter(|(lon, lat)| root.contains(*lon, *lat))
-            .map(|(lon, lat)| {
-                let t = ImplicitTile::containing(&root, layout.leaf_level, lon, lat);
-                (t.x, t.y)
-            })
-            .collect();
-        (layout, leaves)
+        ImplicitLayout::new(root, lo - 20.0, hi + tallest + 20.0)
     })
     .await?;
-    Ok(result)
+    Ok(layout)
+}
+
+/// The region and tile of a `/3dtiles/area/{bbox}/.../{level}/{x}/{y}{ext}` path.
+fn implicit_request(
+    state: &AppState,
+    path: Result<Path<(String, String, String, String)>, PathRejection>,
+    ext: &str,
+) -> Result<(GeoBbox, ImplicitTile), AppError> {
+    let Path((bbox, level, x, y)) =
+        path.map_err(|e| AppError::bad_request("invalid_tile", e.body_text()))?;
+    let root = parse_bbox(Some(&bbox), state.limits.max_bbox_km2)?;
+    Ok((root, parse_implicit(&level, &x, &y, ext)?))
 }
 
 /// A 3D Tiles 1.1 tileset with implicit quadtree tiling over a region.
@@ -116,7 +138,7 @@ pub async fn tileset(
 ) -> Result<Response, AppError> {
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
     let root = root_for(&state, query.bbox.as_deref())?;
-    let (layout, _) = layout(&state, root).await?;
+    let layout = layout(&state, root).await?;
     let json = tileset_json(&layout, &format!("area/{}/", bbox_path(&root)));
     Ok(([(header::CACHE_CONTROL, "public, max-age=300")], Json(json)).into_response())
 }
@@ -160,10 +182,7 @@ pub async fn subtree(
     State(state): State<AppState>,
     path: Result<Path<(String, String, String, String)>, PathRejection>,
 ) -> Result<Response, AppError> {
-    let Path((bbox, level, x, y)) =
-        path.map_err(|e| AppError::bad_request("invalid_tile", e.body_text()))?;
-    let root = parse_bbox(Some(&bbox), state.limits.max_bbox_km2)?;
-    let t = parse_implicit(&level, &x, &y, ".subtree")?;
+    let (root, t) = implicit_request(&state, path, ".subtree")?;
     if t != (ImplicitTile {
         level: 0,
         x: 0,
@@ -174,8 +193,9 @@ pub async fn subtree(
             "this tree has one subtree, at 0/0/0",
         ));
     }
-    let (layout, leaves) = layout(&state, root).await?;
+    let layout = layout(&state, root).await?;
     let leaf = layout.leaf_level;
+    let leaves = content_leaves(&state, root, leaf).await?;
     let has_content = |t: ImplicitTile| {
         let shift = leaf - t.level.min(leaf);
         leaves
@@ -213,16 +233,15 @@ pub async fn content(
     request_headers: HeaderMap,
     path: Result<Path<(String, String, String, String)>, PathRejection>,
 ) -> Result<Response, AppError> {
-    let Path((bbox, level, x, y)) =
-        path.map_err(|e| AppError::bad_request("invalid_tile", e.body_text()))?;
-    let root = parse_bbox(Some(&bbox), state.limits.max_bbox_km2)?;
-    let tile = parse_implicit(&level, &x, &y, ".glb")?;
-    let (layout, leaves) = layout(&state, root).await?;
-    if tile.level != layout.leaf_level || !leaves.contains(&(tile.x, tile.y)) {
-        return Err(AppError::not_found(
+    let (root, tile) = implicit_request(&state, path, ".glb")?;
+    let no_content = || {
+        AppError::not_found(
             "no_content",
             "this tile has no content (see the subtree's availability)",
-        ));
+        )
+    };
+    if tile.level != ImplicitLayout::leaf_level_of(&root) {
+        return Err(no_content());
     }
     implicit_bbox(&root, &tile)?;
     let key = TileCoord {
@@ -230,9 +249,14 @@ pub async fn content(
         x: tile.x,
         y: tile.y,
     };
+    // Cached content skips the availability check (errors are never cached).
     let (cached, level) = state
         .tiles
         .get_or_generate(&bbox_path(&root), key, || async {
+            let leaves = content_leaves(&state, root, tile.level).await?;
+            if !leaves.contains(&(tile.x, tile.y)) {
+                return Err(no_content());
+            }
             let g = generate(&state, Area::Implicit { root, tile }).await?;
             Ok((g.glb, g.stats))
         })

@@ -20,17 +20,21 @@ pub struct ImplicitLayout {
 impl ImplicitLayout {
     /// Leaves at most [`LEAF_SIZE_M`] wide.
     pub fn new(root: GeoBbox, min_height: f64, max_height: f64) -> Self {
+        Self {
+            root,
+            leaf_level: Self::leaf_level_of(&root),
+            min_height,
+            max_height,
+        }
+    }
+
+    /// The level whose tiles are at most [`LEAF_SIZE_M`] wide: it depends on the region alone.
+    pub fn leaf_level_of(root: &GeoBbox) -> u8 {
         let (lon, lat) = root.center();
         let (mx, my) = LocalFrame::new(lon, lat, 0.0).metres_per_degree();
         let side =
             ((root.max_lon() - root.min_lon()) * mx).max((root.max_lat() - root.min_lat()) * my);
-        let leaf_level = (side / LEAF_SIZE_M).log2().ceil().clamp(0.0, 12.0) as u8;
-        Self {
-            root,
-            leaf_level,
-            min_height,
-            max_height,
-        }
+        (side / LEAF_SIZE_M).log2().ceil().clamp(0.0, 12.0) as u8
     }
 
     pub fn available_levels(&self) -> u8 {
