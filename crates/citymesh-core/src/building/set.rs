@@ -5,9 +5,9 @@
 //! clusters whose point lies in it, so every building lands in exactly one tile, whole.
 
 use super::cluster::{clusters, record_bounds};
-use crate::geo::{GeoBbox, TileCoord};
+use crate::geo::{GeoBbox, ImplicitTile, TileCoord};
 use crate::osm::BuildingRecord;
-use std::collections::HashMap;
+use std::collections::{BTreeSet, HashMap};
 
 /// Grid cell size in degrees (about 500 m).
 const CELL: f64 = 0.005;
@@ -25,6 +25,20 @@ impl ClusterInfo {
     pub fn representative_point(&self) -> (f64, f64) {
         let [x0, y0, x1, y1] = self.bounds;
         ((x0 + x1) / 2.0, (y0 + y1) / 2.0)
+    }
+
+    /// The XYZ tile of zoom `z` this cluster belongs to: the one holding its point.
+    pub fn xyz_tile(&self, z: u8) -> TileCoord {
+        let (lon, lat) = self.representative_point();
+        TileCoord::containing(z, lon, lat)
+    }
+
+    /// The tile at `level` of the implicit quadtree over `root` this cluster belongs to: the one
+    /// holding its point; `None` when the point lies outside the root (another tree's cluster).
+    pub fn implicit_tile(&self, root: &GeoBbox, level: u8) -> Option<ImplicitTile> {
+        let (lon, lat) = self.representative_point();
+        root.contains(lon, lat)
+            .then(|| ImplicitTile::containing(root, level, lon, lat))
     }
 }
 
@@ -171,10 +185,33 @@ impl BuildingSet {
         self.candidates(&tile.bounds())
             .into_iter()
             .map(|i| &self.clusters[i as usize])
-            .filter(|c| {
-                let (x, y) = c.representative_point();
-                TileCoord::containing(tile.z, x, y) == *tile
-            })
+            .filter(|c| c.xyz_tile(tile.z) == *tile)
+            .collect()
+    }
+
+    /// Clusters that belong to a tile of the implicit quadtree over `root` (see
+    /// [`ClusterInfo::implicit_tile`]).
+    pub fn clusters_of_implicit_tile(
+        &self,
+        root: &GeoBbox,
+        tile: &ImplicitTile,
+    ) -> Vec<&ClusterInfo> {
+        let Ok(bbox) = tile.bbox(root) else {
+            return Vec::new();
+        };
+        self.clusters_intersecting(&bbox)
+            .into_iter()
+            .filter(|c| c.implicit_tile(root, tile.level) == Some(*tile))
+            .collect()
+    }
+
+    /// The `(x, y)` of every tile at `level` of the tree over `root` that holds a cluster: the
+    /// tiles with content.
+    pub fn implicit_tiles_with_content(&self, root: &GeoBbox, level: u8) -> BTreeSet<(u32, u32)> {
+        self.clusters_intersecting(root)
+            .into_iter()
+            .filter_map(|c| c.implicit_tile(root, level))
+            .map(|t| (t.x, t.y))
             .collect()
     }
 }

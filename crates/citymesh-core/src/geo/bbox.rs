@@ -117,6 +117,50 @@ impl GeoBbox {
     pub fn contains(&self, lon: f64, lat: f64) -> bool {
         (self.min_lon..=self.max_lon).contains(&lon) && (self.min_lat..=self.max_lat).contains(&lat)
     }
+
+    /// The box grown by `margin` degrees on every side, clamped to the valid range.
+    ///
+    /// ```
+    /// use citymesh_core::geo::GeoBbox;
+    /// let b = GeoBbox::new(8.39, 49.04, 8.41, 49.06).unwrap().grown_by_degrees(0.01);
+    /// assert_eq!(b.to_string(), "8.38,49.03,8.42,49.07");
+    /// let edge = GeoBbox::new(179.5, 0.0, 180.0, 1.0).unwrap().grown_by_degrees(1.0);
+    /// assert_eq!(edge.max_lon(), 180.0);
+    /// ```
+    pub fn grown_by_degrees(&self, margin: f64) -> Self {
+        self.grown(margin, margin)
+    }
+
+    /// The box grown by `metres` on every side (converted to degrees at its centre), clamped to
+    /// the valid range.
+    pub fn grown_by_metres(&self, metres: f64) -> Self {
+        let (lon, lat) = self.center();
+        let (mx, my) = LocalFrame::new(lon, lat, 0.0).metres_per_degree();
+        self.grown(metres / mx, metres / my)
+    }
+
+    fn grown(&self, dlon: f64, dlat: f64) -> Self {
+        let (dlon, dlat) = (dlon.max(0.0), dlat.max(0.0));
+        if !(dlon.is_finite() && dlat.is_finite()) {
+            return *self;
+        }
+        Self {
+            min_lon: (self.min_lon - dlon).max(-180.0),
+            min_lat: (self.min_lat - dlat).max(-MAX_MERCATOR_LAT),
+            max_lon: (self.max_lon + dlon).min(180.0),
+            max_lat: (self.max_lat + dlat).min(MAX_MERCATOR_LAT),
+        }
+    }
+
+    /// The smallest box holding both.
+    pub fn union(&self, other: &GeoBbox) -> Self {
+        Self {
+            min_lon: self.min_lon.min(other.min_lon),
+            min_lat: self.min_lat.min(other.min_lat),
+            max_lon: self.max_lon.max(other.max_lon),
+            max_lat: self.max_lat.max(other.max_lat),
+        }
+    }
 }
 
 use super::LocalFrame;

@@ -2,7 +2,7 @@
 //! linearly in longitude and latitude, with `y` counted from the south (unlike XYZ tiles), and
 //! availability bitstreams list tiles in Morton order.
 
-use super::GeoBbox;
+use super::{BboxError, GeoBbox};
 
 /// A tile of the implicit quadtree.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -31,6 +31,13 @@ impl ImplicitTile {
             root.min_lon() + dx * f64::from(self.x + 1),
             root.min_lat() + dy * f64::from(self.y + 1),
         ]
+    }
+
+    /// The tile's part of `root` as a box (an error only when the tile is too small for
+    /// distinct degrees).
+    pub fn bbox(&self, root: &GeoBbox) -> Result<GeoBbox, BboxError> {
+        let [w, s, e, n] = self.bounds(root);
+        GeoBbox::new(w, s, e, n)
     }
 
     /// The tile at `level` that holds a point of `root`; points on an inner edge belong to the

@@ -1,15 +1,15 @@
-//! The mesh every generator writes into, and its glTF/GLB encoding.
+//! The mesh every generator writes into, and its glTF/GLB encoding ([`gltf`]).
 //!
 //! Positions are `[east, north, up]` metres in a [`crate::geo::LocalFrame`]; triangles are
 //! counter-clockwise seen from outside; every triangle carries a [`FaceStyle`] (flat shading).
 
 pub mod check;
 mod colour;
-mod glb;
+pub mod gltf;
 
 pub use check::{ClosedReport, check_closed};
 pub use colour::Rgb;
-pub use glb::{GlbOrigin, Placement, write_glb, write_glb_placed};
+pub use gltf::{EncodedGlb, Placement, encode_glb};
 
 /// The cross product `(b - a) x (c - a)`: the normal of a counter-clockwise triangle, with twice
 /// its area as length.

@@ -1,7 +1,17 @@
 //! The tileset JSON of a region with implicit quadtree tiling.
 
+use crate::building::set::BuildingSet;
+use crate::building::tags::parse_length;
 use crate::geo::{GeoBbox, LocalFrame};
+use crate::terrain::ElevationModel;
 use serde_json::{Value, json};
+
+/// Ground samples per side when measuring a region's height range.
+const HEIGHT_SAMPLES: u32 = 33;
+/// Height assumed for the tallest building when none is tagged taller (metres).
+const MIN_TALLEST_M: f64 = 60.0;
+/// Slack below the lowest ground and above the highest roof (metres).
+const HEIGHT_SLACK_M: f64 = 20.0;
 
 /// Content tiles are at most this wide (metres).
 pub const LEAF_SIZE_M: f64 = 400.0;
@@ -26,6 +36,29 @@ impl ImplicitLayout {
             min_height,
             max_height,
         }
+    }
+
+    /// The tree over `root` with its height range: the ground sampled on a 33 x 33 grid of
+    /// `model`, and the tallest tagged building of `set` there (at least 60 m), with 20 m of slack.
+    pub fn measure(root: GeoBbox, model: &ElevationModel, set: &BuildingSet) -> Self {
+        let (mut lo, mut hi) = (f64::MAX, f64::MIN);
+        let last = f64::from(HEIGHT_SAMPLES - 1);
+        for i in 0..HEIGHT_SAMPLES {
+            for j in 0..HEIGHT_SAMPLES {
+                let lon = root.min_lon() + (root.max_lon() - root.min_lon()) * f64::from(i) / last;
+                let lat = root.min_lat() + (root.max_lat() - root.min_lat()) * f64::from(j) / last;
+                let h = model.ground_height(lon, lat);
+                lo = lo.min(h);
+                hi = hi.max(h);
+            }
+        }
+        let tallest = set
+            .clusters_intersecting(&root)
+            .iter()
+            .flat_map(|c| set.cluster_records(c))
+            .filter_map(|r| r.tags.get("height").and_then(|h| parse_length(h)))
+            .fold(MIN_TALLEST_M, f64::max);
+        Self::new(root, lo - HEIGHT_SLACK_M, hi + tallest + HEIGHT_SLACK_M)
     }
 
     /// The level whose tiles are at most [`LEAF_SIZE_M`] wide: it depends on the region alone.

@@ -1,9 +1,14 @@
 //! A scene: everything generated for one bounding box, in one local frame, ready to encode: the
-//! ground grid and the buildings standing on it.
+//! ground grid and the buildings standing on it. [`SceneArea`] says, for every kind of area
+//! citymesh serves, which box and which groups of buildings a scene holds.
+
+mod request;
+
+pub use request::{SceneArea, SceneOutput, SceneRequest};
 
 use crate::building::{BuildingContext, BuildingStats, generate_cluster};
 use crate::geo::{GeoBbox, LocalFrame};
-use crate::mesh::{GlbOrigin, Mesh, Placement, write_glb, write_glb_placed};
+use crate::mesh::{EncodedGlb, Mesh, Placement, encode_glb};
 use crate::osm::BuildingRecord;
 use crate::terrain::{ElevationModel, GroundReport, build_ground};
 use std::ops::Range;
@@ -11,7 +16,7 @@ use std::ops::Range;
 /// How buildings meet the border of the scene's box.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Border {
-    /// Cut at the border (`/scene.glb`, METHOD.md section 5).
+    /// Cut at the border (`/scene`, docs/method.md section 5).
     Truncate,
     /// Kept whole (tiles: each cluster lands in exactly one tile).
     Whole,
@@ -68,29 +73,24 @@ impl Scene {
         }
     }
 
-    /// The scene as 3D Tiles content: ECEF positions relative to the scene centre's ECEF point
-    /// (see [`crate::mesh::Placement::Ecef`]).
-    pub fn to_glb_ecef(&self) -> Vec<u8> {
-        let (lon, lat, _) = self.frame.origin();
-        let centre = crate::geo::geodetic_to_ecef(lon, lat, 0.0);
-        write_glb_placed(
+    /// The scene encoded as GLB with the given placement, its buildings' OSM ids recorded in
+    /// the file.
+    pub fn encode(&self, placement: Placement) -> EncodedGlb {
+        encode_glb(
             &self.mesh,
-            Placement::Ecef {
-                frame: self.frame,
-                centre,
-            },
+            &self.frame,
+            placement,
             &self.buildings.generated_ids,
         )
     }
 
-    /// The scene as GLB bytes, with its origin and the OSM ids of its buildings recorded in the
-    /// file.
+    /// The scene as GLB bytes in local glTF axes, its origin recorded in the file.
     pub fn to_glb(&self) -> Vec<u8> {
-        let (lon, lat, height) = self.frame.origin();
-        write_glb(
-            &self.mesh,
-            GlbOrigin { lon, lat, height },
-            &self.buildings.generated_ids,
-        )
+        self.encode(Placement::LocalEnu).bytes
+    }
+
+    /// The scene as 3D Tiles content: ECEF positions relative to the scene centre's ECEF point.
+    pub fn to_glb_ecef(&self) -> Vec<u8> {
+        self.encode(Placement::Ecef).bytes
     }
 }

@@ -1,0 +1,176 @@
+//! What a scene holds, for every kind of area citymesh serves: a box cut at its border, an XYZ
+//! tile, a content tile of the 3D Tiles quadtree, or buildings a user gave. Each area decides its
+//! ground box, the groups of buildings it includes (each group whole in exactly one tile of a
+//! tiling, see [`crate::building::set::ClusterInfo`]), how buildings meet the border, and how the
+//! result is placed on the Earth. Servers build one [`SceneRequest`] and hand it the data.
+
+use super::{Border, Scene};
+use crate::building::BuildingStats;
+use crate::building::set::{BuildingSet, ClusterInfo, extent_with};
+use crate::geo::{BboxError, GeoBbox, ImplicitTile, TileCoord};
+use crate::mesh::{EncodedGlb, Placement};
+use crate::terrain::{ElevationModel, GroundReport};
+
+/// An area to generate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SceneArea {
+    /// A box; buildings are cut at its border.
+    Bbox(GeoBbox),
+    /// An XYZ tile: the ground cut to the tile and, whole, the groups whose representative point
+    /// lies in it.
+    Xyz(TileCoord),
+    /// A tile of the implicit quadtree over `root` (3D Tiles content): the ground of the tile
+    /// and, whole, the groups it holds; placed in ECEF.
+    Implicit { root: GeoBbox, tile: ImplicitTile },
+    /// Every group of a given set of buildings (procedural or uploaded), whole, on the ground of
+    /// the box.
+    Given(GeoBbox),
+}
+
+impl SceneArea {
+    /// The box of ground the scene covers (an error only for an implicit tile too small to have
+    /// distinct degrees).
+    pub fn bbox(&self) -> Result<GeoBbox, BboxError> {
+        match self {
+            SceneArea::Bbox(b) | SceneArea::Given(b) => Ok(*b),
+            SceneArea::Xyz(t) => Ok(t.bounds()),
+            SceneArea::Implicit { root, tile } => tile.bbox(root),
+        }
+    }
+
+    /// How buildings meet the border.
+    pub fn border(&self) -> Border {
+        match self {
+            SceneArea::Bbox(_) => Border::Truncate,
+            _ => Border::Whole,
+        }
+    }
+
+    /// How the result is placed on the Earth.
+    pub fn placement(&self) -> Placement {
+        match self {
+            SceneArea::Implicit { .. } => Placement::Ecef,
+            _ => Placement::LocalEnu,
+        }
+    }
+
+    /// The request for this area over `set`: its box and the groups it includes.
+    pub fn request<'a>(&self, set: &'a BuildingSet) -> Result<SceneRequest<'a>, BboxError> {
+        let bbox = self.bbox()?;
+        let groups = match self {
+            SceneArea::Bbox(b) => set.clusters_intersecting(b),
+            SceneArea::Xyz(t) => set.clusters_of_tile(t),
+            SceneArea::Implicit { root, tile } => set.clusters_of_implicit_tile(root, tile),
+            SceneArea::Given(_) => set.clusters().iter().collect(),
+        };
+        Ok(SceneRequest {
+            set,
+            bbox,
+            groups,
+            border: self.border(),
+            placement: self.placement(),
+        })
+    }
+}
+
+/// Everything the generator needs for one scene.
+#[derive(Debug, Clone)]
+pub struct SceneRequest<'a> {
+    pub set: &'a BuildingSet,
+    /// The ground's box.
+    pub bbox: GeoBbox,
+    /// The groups of buildings to generate, each with all its records.
+    pub groups: Vec<&'a ClusterInfo>,
+    pub border: Border,
+    pub placement: Placement,
+}
+
+/// A generated, encoded scene and what went into it.
+#[derive(Debug, Clone)]
+pub struct SceneOutput {
+    pub glb: EncodedGlb,
+    pub ground: GroundReport,
+    pub buildings: BuildingStats,
+}
+
+impl SceneRequest<'_> {
+    /// The box the elevation model must cover: the ground and every whole group reaching past
+    /// it.
+    pub fn terrain_bbox(&self) -> GeoBbox {
+        extent_with(&self.bbox, &self.groups)
+    }
+
+    /// The scene over `model` (which should cover [`SceneRequest::terrain_bbox`]).
+    pub fn scene(&self, model: &ElevationModel) -> Scene {
+        let groups: Vec<_> = self
+            .groups
+            .iter()
+            .map(|c| self.set.cluster_records(c))
+            .collect();
+        Scene::new(model, &self.bbox, &groups, self.border)
+    }
+
+    /// The scene over `model`, encoded.
+    pub fn generate(&self, model: &ElevationModel) -> SceneOutput {
+        let scene = self.scene(model);
+        SceneOutput {
+            glb: scene.encode(self.placement),
+            ground: scene.ground,
+            buildings: scene.buildings,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::procedural::{ProceduralParams, generate_city};
+
+    #[test]
+    fn each_group_is_in_exactly_one_tile_of_each_tiling() {
+        let city = generate_city(&ProceduralParams::default()).unwrap();
+        let set = BuildingSet::new(city.records);
+        let all = set.clusters().len();
+        assert!(all > 100, "{all} groups");
+        // XYZ zoom 17 over the city.
+        let range = TileCoord::covering(&city.bbox, 17);
+        let xyz: usize = range
+            .tiles()
+            .map(|t| SceneArea::Xyz(t).request(&set).unwrap().groups.len())
+            .sum();
+        assert_eq!(xyz, all);
+        // The implicit quadtree over a root holding the whole city, level 3.
+        let root = set.extent().unwrap().grown_by_metres(10.0);
+        let mut implicit = 0;
+        for x in 0..8 {
+            for y in 0..8 {
+                let tile = ImplicitTile { level: 3, x, y };
+                implicit += SceneArea::Implicit { root, tile }
+                    .request(&set)
+                    .unwrap()
+                    .groups
+                    .len();
+            }
+        }
+        assert_eq!(implicit, all);
+        let with_content = set.implicit_tiles_with_content(&root, 3);
+        assert!(with_content.len() > 1 && with_content.len() <= 64);
+    }
+
+    #[test]
+    fn areas_choose_border_and_placement() {
+        let b = GeoBbox::new(8.39, 49.04, 8.41, 49.06).unwrap();
+        assert_eq!(SceneArea::Bbox(b).border(), Border::Truncate);
+        assert_eq!(SceneArea::Given(b).border(), Border::Whole);
+        let tile = ImplicitTile { level: 1, x: 1, y: 0 };
+        let implicit = SceneArea::Implicit { root: b, tile };
+        assert_eq!(implicit.placement(), Placement::Ecef);
+        let got = implicit.bbox().unwrap();
+        let want = [8.4, 49.04, 8.41, 49.05];
+        let have = [got.min_lon(), got.min_lat(), got.max_lon(), got.max_lat()];
+        for (h, w) in have.iter().zip(want) {
+            assert!((h - w).abs() < 1e-12, "{have:?}");
+        }
+        assert_eq!(SceneArea::Bbox(b).placement(), Placement::LocalEnu);
+    }
+}
