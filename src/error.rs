@@ -181,6 +181,16 @@ impl From<crate::upstream::OverpassError> for AppError {
     }
 }
 
+impl From<crate::source::SourceError> for AppError {
+    fn from(e: crate::source::SourceError) -> Self {
+        use crate::source::SourceError;
+        match e {
+            SourceError::Upstream(e) => e.into(),
+            other => AppError::internal(other),
+        }
+    }
+}
+
 impl From<tokio::task::JoinError> for AppError {
     fn from(e: tokio::task::JoinError) -> Self {
         AppError::internal(format!("generation task failed: {e}"))

@@ -2,22 +2,25 @@
 //! meshes on demand.
 //!
 //! The geometry lives in the pure `citymesh-core` crate; this crate is everything around it: the
-//! command line ([`cli`]), the DEM file store ([`dem`]), local OSM data ([`osm`]), the SQLite cache
-//! ([`db`]), the HTTP routes
-//! ([`routes`]) and the server's lifecycle ([`server`]). A request flows one way:
-//! route -> cache lookup -> data source -> core generator in `spawn_blocking` -> cache -> response.
+//! command line ([`cli`]), the DEM file store ([`dem`]), the building sources ([`source`]), the
+//! caches of generated content ([`cache`], stored through [`db`]), the request pipeline
+//! ([`pipeline`]), the HTTP routes ([`routes`]) and the server's lifecycle ([`server`]). A request
+//! flows one way: route -> cache -> source -> core (in `spawn_blocking`) -> cache -> response.
+//! `docs/architecture.md` draws it.
 
+pub mod cache;
 pub mod cli;
 pub mod db;
 pub mod dem;
 pub mod error;
-pub mod generate;
+pub mod generation_stats;
+pub mod import;
 pub mod metrics;
-pub mod osm;
+pub mod pipeline;
 pub mod routes;
 pub mod server;
+pub mod source;
 pub mod state;
-pub mod tile_cache;
 pub mod upstream;
 
 pub use error::AppError;

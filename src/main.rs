@@ -14,7 +14,7 @@ async fn main() -> anyhow::Result<()> {
         }
         Command::Import(args) => {
             let report =
-                citymesh::osm::import::import(&args.files, &args.cache_db, args.quiet).await?;
+                citymesh::import::import(&args.files, &args.cache_db, args.quiet).await?;
             println!(
                 "imported {} buildings ({} skipped) into {} data tiles ({} changed; {} generated tiles dropped) in {}",
                 report.buildings,

@@ -1,13 +1,14 @@
 //! Start-up and shutdown: logging, the database, the DEM store, the listener, and a graceful stop
 //! on SIGINT or SIGTERM.
 
+use crate::cache::{TileCache, invalidation};
 use crate::cli::ServeArgs;
 use crate::db::{self, TileStore};
 use crate::dem::DemStore;
 use crate::metrics::Metrics;
-use crate::osm::{DataTileSource, OsmData, OsmSource, OsmTileStore, load_osm_files};
+use crate::source::data_tiles::OsmTileStore;
+use crate::source::{BuildingSource, DataTileSource, FileSource, load_osm_files};
 use crate::state::{AppState, Limits};
-use crate::tile_cache::TileCache;
 use crate::upstream::{OverpassClient, OverpassConfig};
 use anyhow::Context;
 use citymesh_core::building::set::BuildingSet;
@@ -67,11 +68,7 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
             citymesh_core::procedural::generate_city(&ProceduralParams::default())
         })
         .await??;
-        Some(OsmData {
-            set: Arc::new(BuildingSet::new(city.records)),
-            skipped_at_load: 0,
-            fingerprint: "demo".to_owned(),
-        })
+        Some(FileSource::new(BuildingSet::new(city.records), "demo"))
     } else if args.osm.is_empty() {
         None
     } else {
@@ -85,21 +82,8 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         );
         Some(data)
     };
-    let variant = format!(
-        "{}-{}-{}",
-        env!("CARGO_PKG_VERSION"),
-        dem.fingerprint(),
-        files.as_ref().map_or("tiles", |f| f.fingerprint.as_str())
-    );
-    let tiles = Arc::new(TileCache::new(
-        TileStore::new(pool.clone()),
-        args.tile_cache_mb.saturating_mul(1 << 20),
-        variant,
-        (args.min_zoom, args.max_zoom),
-        metrics.clone(),
-    ));
-    let osm = match files {
-        Some(data) => OsmSource::Files(data),
+    let source: Arc<dyn BuildingSource> = match files {
+        Some(data) => Arc::new(data),
         None => {
             let upstream = if args.offline {
                 None
@@ -112,22 +96,34 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
                     max_concurrent: args.overpass_max_concurrent,
                 })?))
             };
-            OsmSource::Tiles(DataTileSource::new(
+            DataTileSource::new(
                 store,
                 upstream,
                 (args.osm_ttl_hours * 3600.0) as i64,
                 metrics.clone(),
-                tiles.clone(),
-            ))
+            )
         }
     };
+    let data_version = format!(
+        "{}-{}-{}",
+        env!("CARGO_PKG_VERSION"),
+        dem.fingerprint(),
+        source.fingerprint()
+    );
+    let tiles = Arc::new(TileCache::new(
+        TileStore::new(pool.clone()),
+        args.tile_cache_mb.saturating_mul(1 << 20),
+        data_version,
+        metrics.clone(),
+    ));
+    invalidation::subscribe(source.as_ref(), tiles.clone());
     let slots = args
         .max_generations
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(2, |n| n.get()))
         .max(1);
     Ok(AppState {
         dem: Arc::new(dem),
-        osm: Arc::new(osm),
+        source,
         tiles,
         metrics,
         max_upload_bytes: args.max_upload_mb.saturating_mul(1 << 20) as usize,

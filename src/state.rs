@@ -1,10 +1,10 @@
-//! Shared server state: the DEM store, the OSM source, the tile cache, the metrics and the limits,
-//! cheap to clone per request.
+//! Shared server state: the DEM store, the building source, the tile cache, the metrics and the
+//! limits, cheap to clone per request.
 
+use crate::cache::TileCache;
 use crate::dem::DemStore;
 use crate::metrics::Metrics;
-use crate::osm::OsmSource;
-use crate::tile_cache::TileCache;
+use crate::source::BuildingSource;
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::Semaphore;
@@ -24,7 +24,7 @@ pub struct Limits {
 #[derive(Clone)]
 pub struct AppState {
     pub dem: Arc<DemStore>,
-    pub osm: Arc<OsmSource>,
+    pub source: Arc<dyn BuildingSource>,
     pub tiles: Arc<TileCache>,
     pub metrics: Arc<Metrics>,
     /// Generations running at once at most: a burst of cold tiles cannot starve cached ones,

@@ -293,7 +293,8 @@ async fn a_known_building_corner_decodes_onto_its_osm_node() {
         !corner.is_empty(),
         "no wall vertex within 5 cm of the OSM node (the nearest is {nearest} m away)"
     );
-    // Its lowest point is the floor: the lowest ground along the outline (METHOD.md section 3).
+    // Its lowest point is the floor: the lowest ground along the outline
+    // (docs/method.md section 3).
     let floor = corner
         .iter()
         .map(|(p, _)| ecef_to_geodetic(*p).2)

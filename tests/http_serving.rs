@@ -222,7 +222,7 @@ fn metric(text: &str, name: &str) -> f64 {
 
 async fn stored_data_tiles(db: &std::path::Path) -> i64 {
     let pool = citymesh::db::open(db.to_str().unwrap()).await.unwrap();
-    citymesh::osm::OsmTileStore::new(pool)
+    citymesh::source::data_tiles::OsmTileStore::new(pool)
         .count()
         .await
         .unwrap()
@@ -412,7 +412,7 @@ async fn an_import_that_changes_data_drops_exactly_the_tiles_over_it() {
     let import = |p: std::path::PathBuf| {
         let f = file.clone();
         async move {
-            citymesh::osm::import::import(&[p], f.to_str().unwrap(), true)
+            citymesh::import::import(&[p], f.to_str().unwrap(), true)
                 .await
                 .unwrap()
         }
@@ -505,7 +505,7 @@ async fn import_then_offline_serves_every_building_once_with_seamless_ground() {
     let db = tempfile::tempdir().unwrap();
     let file = db.path().join("c.sqlite");
     let pbf = data_dir().join("osm/karlsruhe-kirchfeld.osm.pbf");
-    let report = citymesh::osm::import::import(&[pbf], file.to_str().unwrap(), true)
+    let report = citymesh::import::import(&[pbf], file.to_str().unwrap(), true)
         .await
         .unwrap();
     assert_eq!(report.buildings, 2995 + 31);

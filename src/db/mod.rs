@@ -3,7 +3,7 @@
 
 mod tile_store;
 
-pub use tile_store::{TileKey, TileStore};
+pub use tile_store::{StoredTile, TileStore};
 
 use sqlx::SqlitePool;
 use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions};

@@ -1,69 +1,73 @@
-//! HTTP caching for GLB answers: a strong ETag, `If-None-Match` -> 304 Not Modified, and
+//! HTTP caching for GLB and other cacheable answers: a strong ETag, `If-None-Match` -> 304 Not Modified, and
 //! `Cache-Control`.
 
+use super::headers::glb_headers;
+use crate::cache::{CacheLevel, CachedTile, etag_of};
+use crate::pipeline::Generated;
 use axum::body::Body;
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use bytes::Bytes;
 
 /// Whether an `If-None-Match` header names this ETag (or is `*`).
-fn matches(request: &HeaderMap, etag: &HeaderValue) -> bool {
+fn matches(request: &HeaderMap, ours: &str) -> bool {
     let Some(value) = request
         .get(header::IF_NONE_MATCH)
         .and_then(|v| v.to_str().ok())
     else {
         return false;
     };
-    let ours = etag.to_str().unwrap_or_default();
     value.split(',').map(str::trim).any(|candidate| {
         candidate == "*" || candidate == ours || candidate.strip_prefix("W/") == Some(ours)
     })
 }
 
-/// The GLB with its headers, or 304 when the client has it already.
-pub fn glb_response(
+/// The body with its headers, or 304 when the client has it already.
+pub fn conditional_response(
     request: &HeaderMap,
-    glb: Bytes,
-    etag: HeaderValue,
+    body: Bytes,
+    etag: &str,
     mut headers: HeaderMap,
     cache_control: &'static str,
 ) -> Response {
-    headers.insert(header::ETAG, etag.clone());
+    if let Ok(v) = HeaderValue::from_str(etag) {
+        headers.insert(header::ETAG, v);
+    }
     headers.insert(
         header::CACHE_CONTROL,
         HeaderValue::from_static(cache_control),
     );
-    if matches(request, &etag) {
+    if matches(request, etag) {
         headers.remove(header::CONTENT_TYPE);
         return (StatusCode::NOT_MODIFIED, headers, Body::empty()).into_response();
     }
-    (headers, glb).into_response()
+    (headers, body).into_response()
 }
 
 /// A freshly generated GLB, with its figures in the headers.
 pub fn generated_response(
     request: &HeaderMap,
-    generated: crate::generate::Generated,
+    generated: Generated,
     cache_control: &'static str,
 ) -> Response {
-    let etag = crate::tile_cache::etag_of(&generated.glb);
-    let headers = crate::generate::glb_headers(Some(&generated.stats));
-    glb_response(request, generated.glb, etag, headers, cache_control)
+    let etag = etag_of(&generated.glb);
+    let headers = glb_headers(Some(&generated.stats));
+    conditional_response(request, generated.glb, &etag, headers, cache_control)
 }
 
 /// A tile from the tile cache, saying which level it came from.
 pub fn cached_response(
     request: &HeaderMap,
-    cached: crate::tile_cache::CachedTile,
-    level: crate::tile_cache::CacheLevel,
+    cached: CachedTile,
+    level: CacheLevel,
     cache_control: &'static str,
 ) -> Response {
-    let mut headers = crate::generate::glb_headers(cached.generated.as_deref());
+    let mut headers = glb_headers(cached.generated.as_deref());
     headers.insert(
         axum::http::HeaderName::from_static("x-citymesh-cache"),
-        HeaderValue::from_static(level.header()),
+        HeaderValue::from_static(level.name()),
     );
-    glb_response(request, cached.glb, cached.etag, headers, cache_control)
+    conditional_response(request, cached.bytes, &cached.etag, headers, cache_control)
 }
 
 #[cfg(test)]
@@ -72,17 +76,17 @@ mod tests {
 
     #[test]
     fn if_none_match_lists_and_wildcards() {
-        let etag = HeaderValue::from_static("\"abc\"");
+        let etag = "\"abc\"";
         let mut h = HeaderMap::new();
-        assert!(!matches(&h, &etag));
+        assert!(!matches(&h, etag));
         h.insert(
             header::IF_NONE_MATCH,
             HeaderValue::from_static("\"x\", \"abc\""),
         );
-        assert!(matches(&h, &etag));
+        assert!(matches(&h, etag));
         h.insert(header::IF_NONE_MATCH, HeaderValue::from_static("*"));
-        assert!(matches(&h, &etag));
+        assert!(matches(&h, etag));
         h.insert(header::IF_NONE_MATCH, HeaderValue::from_static("\"abd\""));
-        assert!(!matches(&h, &etag));
+        assert!(!matches(&h, etag));
     }
 }

@@ -1,5 +1,6 @@
 //! `GET /health`: is the server up, and what data does it have.
 
+use crate::error::ErrorBody;
 use crate::state::AppState;
 use axum::Json;
 use axum::extract::State;
@@ -21,12 +22,15 @@ pub struct Health {
 
 /// Liveness and a summary of the configured data.
 #[utoipa::path(get, path = "/health", tag = "service",
-    responses((status = 200, description = "The server is up", body = Health)))]
+    responses(
+        (status = 200, description = "The server is up", body = Health),
+        (status = 404, description = "Never: listed because every operation names its client errors", body = ErrorBody),
+    ))]
 pub async fn health(State(state): State<AppState>) -> Json<Health> {
     Json(Health {
         status: "ok",
         version: env!("CARGO_PKG_VERSION"),
         dem_files: state.dem.file_count(),
-        buildings: state.osm.summary(),
+        buildings: state.source.summary(),
     })
 }

@@ -1,5 +1,6 @@
 //! `GET /metrics`: Prometheus text format, and the middleware that counts every request.
 
+use crate::error::ErrorBody;
 use crate::state::AppState;
 use axum::extract::{MatchedPath, Request, State};
 use axum::http::{HeaderValue, header};
@@ -9,7 +10,10 @@ use std::time::Instant;
 
 /// Counters, histograms and cache figures in the Prometheus text exposition format.
 #[utoipa::path(get, path = "/metrics", tag = "service",
-    responses((status = 200, description = "Prometheus metrics", content_type = "text/plain")))]
+    responses(
+        (status = 200, description = "Prometheus metrics", content_type = "text/plain", body = String),
+        (status = 404, description = "Never: listed because every operation names its client errors", body = ErrorBody),
+    ))]
 pub async fn metrics(State(state): State<AppState>) -> Response {
     (
         [(

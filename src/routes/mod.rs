@@ -1,14 +1,19 @@
-//! The HTTP surface: one file per resource, all thin. Handlers check their input, ask the
-//! generator or a cache, and shape the response; they never compute geometry themselves.
+//! The HTTP surface: one file per resource, all thin. Handlers parse their input, ask the cache
+//! or the pipeline, and shape the response; they never compute geometry themselves. Every route
+//! is registered through utoipa-axum's `OpenApiRouter` with `routes!`, so a route cannot exist
+//! without its OpenAPI description.
 
 mod conditional;
+mod headers;
 mod health;
 mod metrics;
 mod pages;
+mod params;
 mod procedural;
 mod scene;
 mod scene_stats;
 mod scene_upload;
+mod schemas;
 mod tiles;
 mod tiles3d;
 
@@ -16,37 +21,92 @@ use crate::error::{AppError, ErrorBody};
 use crate::state::AppState;
 use axum::Router;
 use axum::http::Method;
-use axum::routing::get;
 use tower_http::compression::CompressionLayer;
 use tower_http::compression::predicate::{NotForContentType, Predicate, SizeAbove};
 use tower_http::cors::{Any, CorsLayer};
 use tower_http::services::ServeDir;
 use tower_http::trace::TraceLayer;
 use utoipa::OpenApi;
+use utoipa::openapi::OpenApi as OpenApiDocument;
+use utoipa_axum::router::OpenApiRouter;
+use utoipa_axum::routes;
 use utoipa_swagger_ui::SwaggerUi;
 
-/// The OpenAPI description of every route.
+/// The document's frame: what the API is, its tags and servers. The paths come from the routes.
 #[derive(OpenApi)]
 #[openapi(
     info(
         title = "citymesh",
-        description = "3D city meshes (glTF binary) from OpenStreetMap buildings and SRTM terrain, generated on demand."
+        description = "3D city meshes (glTF binary and 3D Tiles) from OpenStreetMap buildings and SRTM terrain, generated on demand.",
+        license(name = "MIT OR Apache-2.0", identifier = "MIT OR Apache-2.0")
     ),
-    paths(
-        health::health,
-        scene::scene_glb,
-        scene_stats::scene_stats,
-        tiles::tile_glb
+    servers((url = "/", description = "This server")),
+    tags(
+        (name = "meshes", description = "Scenes and XYZ tiles as binary glTF"),
+        (name = "3d tiles", description = "3D Tiles 1.1 with implicit quadtree tiling, for CesiumJS and 3d-tiles-renderer"),
+        (name = "procedural", description = "Seeded procedural cities through the same generator"),
+        (name = "service", description = "Health and metrics"),
+        (name = "pages", description = "Viewers for people"),
     ),
-    components(schemas(ErrorBody, health::Health))
+    components(schemas(ErrorBody))
 )]
-pub struct ApiDoc;
+struct ApiDoc;
+
+/// Routes whose last segment carries a fixed suffix after a parameter. axum's router cannot
+/// match a suffix, so the handler takes the whole segment and checks the suffix; the document
+/// names the path as clients call it.
+const SUFFIXED_PATHS: [(&str, &str); 3] = [
+    ("/tiles/{z}/{x}/{y}", "/tiles/{z}/{x}/{y}.glb"),
+    (
+        "/3dtiles/area/{bbox}/subtrees/{level}/{x}/{y}",
+        "/3dtiles/area/{bbox}/subtrees/{level}/{x}/{y}.subtree",
+    ),
+    (
+        "/3dtiles/area/{bbox}/content/{level}/{x}/{y}",
+        "/3dtiles/area/{bbox}/content/{level}/{x}/{y}.glb",
+    ),
+];
+
+/// Every route with its description.
+fn api_router() -> OpenApiRouter<AppState> {
+    OpenApiRouter::with_openapi(ApiDoc::openapi())
+        .routes(routes!(pages::viewer))
+        .routes(routes!(pages::viewer_js))
+        .routes(routes!(pages::cesium))
+        .routes(routes!(pages::tiles_renderer))
+        .routes(routes!(health::health))
+        .routes(routes!(metrics::metrics))
+        .routes(routes!(scene::scene))
+        .routes(routes!(scene::scene_glb, scene_upload::post_scene))
+        .routes(routes!(scene_stats::scene_stats))
+        .routes(routes!(tiles::tile_glb))
+        .routes(routes!(procedural::procedural_geojson))
+        .routes(routes!(procedural::procedural_glb))
+        .routes(routes!(tiles3d::tileset))
+        .routes(routes!(tiles3d::subtree))
+        .routes(routes!(tiles3d::content))
+}
+
+/// Renames the suffixed paths to the form clients call.
+fn with_suffixes(mut doc: OpenApiDocument) -> OpenApiDocument {
+    for (route, documented) in SUFFIXED_PATHS {
+        if let Some(item) = doc.paths.paths.remove(route) {
+            doc.paths.paths.insert(documented.to_owned(), item);
+        }
+    }
+    doc
+}
+
+/// The OpenAPI document, exactly as served at `/openapi.json`.
+pub fn openapi() -> OpenApiDocument {
+    with_suffixes(api_router().split_for_parts().1)
+}
 
 /// The OpenAPI document as pretty JSON, exactly as served at `/openapi.json`.
 pub fn openapi_json() -> String {
-    ApiDoc::openapi()
+    openapi()
         .to_pretty_json()
-        .expect("the OpenAPI document always serialises")
+        .unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
 }
 
 /// The whole application, ready to serve or to call in tests with `oneshot`.
@@ -56,21 +116,18 @@ pub fn app(state: AppState) -> Router {
     // figures and validators.
     let cors = CorsLayer::new()
         .allow_origin(Any)
-        .allow_methods([Method::GET, Method::HEAD, Method::OPTIONS])
+        .allow_methods([Method::GET, Method::HEAD, Method::OPTIONS, Method::POST])
         .allow_headers(Any)
         .expose_headers(Any);
     // JSON and text compress well; GLB is binary floats and goes out as it is (compressing it on
     // every cached request would cost more CPU than it saves).
     let compression = CompressionLayer::new().compress_when(
         SizeAbove::new(256)
-            .and(NotForContentType::const_new("model/gltf-binary"))
+            .and(NotForContentType::const_new(headers::GLB))
             .and(NotForContentType::IMAGES),
     );
-    Router::new()
-        .route("/", get(pages::viewer))
-        .route("/viewer.js", get(pages::viewer_js))
-        .route("/cesium", get(pages::cesium))
-        .route("/3dtiles-renderer", get(pages::tiles_renderer))
+    let (router, doc) = api_router().split_for_parts();
+    router
         .nest_service("/vendor/three", ServeDir::new(assets.join("three")))
         .nest_service(
             "/vendor/3d-tiles-renderer",
@@ -80,26 +137,7 @@ pub fn app(state: AppState) -> Router {
             "/vendor/cesium",
             ServeDir::new(assets.join("cesium/Build/Cesium")),
         )
-        .route("/health", get(health::health))
-        .route("/metrics", get(metrics::metrics))
-        .route(
-            "/scene.glb",
-            get(scene::scene_glb).post(scene_upload::post_scene),
-        )
-        .route("/procedural.geojson", get(procedural::procedural_geojson))
-        .route("/procedural.glb", get(procedural::procedural_glb))
-        .route("/scene/stats", get(scene_stats::scene_stats))
-        .route("/tiles/{z}/{x}/{y}", get(tiles::tile_glb))
-        .route("/3dtiles/tileset.json", get(tiles3d::tileset))
-        .route(
-            "/3dtiles/area/{bbox}/subtrees/{level}/{x}/{y}",
-            get(tiles3d::subtree),
-        )
-        .route(
-            "/3dtiles/area/{bbox}/content/{level}/{x}/{y}",
-            get(tiles3d::content),
-        )
-        .merge(SwaggerUi::new("/docs").url("/openapi.json", ApiDoc::openapi()))
+        .merge(SwaggerUi::new("/docs").url("/openapi.json", with_suffixes(doc)))
         .fallback(not_found)
         .layer(axum::middleware::from_fn_with_state(
             state.clone(),

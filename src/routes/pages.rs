@@ -3,7 +3,7 @@
 //! (`npm ci` installs them) and are served by citymesh under `/vendor/`, so they work with no
 //! internet; the viewer falls back to a CDN when they are not installed.
 
-use crate::osm::OsmSource;
+use crate::error::ErrorBody;
 use crate::state::AppState;
 use axum::extract::State;
 use axum::http::{HeaderValue, header};
@@ -15,16 +15,20 @@ const VIEWER_JS: &str = include_str!("pages/viewer.js");
 const CESIUM_HTML: &str = include_str!("pages/cesium.html");
 const TILES_RENDERER_HTML: &str = include_str!("pages/tiles3d-renderer.html");
 
-/// The three.js viewer; `?lon=&lat=&zoom=&radius=` choose the place (default: the served
-/// buildings' centre, or the demo city).
+/// The three.js viewer.
+///
+/// `?lon=&lat=&zoom=&radius=` choose the place (default: the served buildings' centre, or the
+/// demo city).
+#[utoipa::path(get, path = "/", tag = "pages",
+    responses(
+        (status = 200, description = "The viewer page", content_type = "text/html", body = String),
+        (status = 404, description = "Never: listed because every operation names its client errors", body = ErrorBody),
+    ))]
 pub async fn viewer(State(state): State<AppState>) -> Html<String> {
-    let (lon, lat) = match state.osm.as_ref() {
-        OsmSource::Files(data) => data
-            .set
-            .extent()
-            .map_or((DEFAULT_LON, DEFAULT_LAT), |b| b.center()),
-        OsmSource::Tiles(_) => (DEFAULT_LON, DEFAULT_LAT),
-    };
+    let (lon, lat) = state
+        .source
+        .extent()
+        .map_or((DEFAULT_LON, DEFAULT_LAT), |b| b.center());
     // three.js from this server when npm installed it, else from a CDN.
     let three = if state
         .assets_dir
@@ -39,6 +43,12 @@ pub async fn viewer(State(state): State<AppState>) -> Html<String> {
     Html(VIEWER_HTML.replace("__DEFAULTS__", &defaults.to_string()))
 }
 
+/// The viewer's script.
+#[utoipa::path(get, path = "/viewer.js", tag = "pages",
+    responses(
+        (status = 200, description = "The script", content_type = "text/javascript", body = String),
+        (status = 404, description = "Never: listed because every operation names its client errors", body = ErrorBody),
+    ))]
 pub async fn viewer_js() -> Response {
     (
         [(
@@ -50,10 +60,22 @@ pub async fn viewer_js() -> Response {
         .into_response()
 }
 
+/// The CesiumJS page: this server's 3D Tiles on an offline globe.
+#[utoipa::path(get, path = "/cesium", tag = "pages",
+    responses(
+        (status = 200, description = "The page", content_type = "text/html", body = String),
+        (status = 404, description = "Never: listed because every operation names its client errors", body = ErrorBody),
+    ))]
 pub async fn cesium() -> Html<&'static str> {
     Html(CESIUM_HTML)
 }
 
+/// The 3d-tiles-renderer page: this server's 3D Tiles in three.js.
+#[utoipa::path(get, path = "/3dtiles-renderer", tag = "pages",
+    responses(
+        (status = 200, description = "The page", content_type = "text/html", body = String),
+        (status = 404, description = "Never: listed because every operation names its client errors", body = ErrorBody),
+    ))]
 pub async fn tiles_renderer() -> Html<&'static str> {
     Html(TILES_RENDERER_HTML)
 }

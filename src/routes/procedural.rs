@@ -2,11 +2,12 @@
 //! definitions (GeoJSON with OSM-style properties) or as the mesh the same generator builds from
 //! them (on flat ground, or the DEM where one covers the place).
 
-use super::conditional::{generated_response, glb_response};
+use super::conditional::{conditional_response, generated_response};
+use super::schemas::GlbBytes;
+use crate::cache::etag_of;
 use crate::error::{AppError, ErrorBody};
-use crate::generate::{Area, generate};
+use crate::pipeline::{Buildings, generate};
 use crate::state::AppState;
-use crate::tile_cache::etag_of;
 use axum::extract::rejection::QueryRejection;
 use axum::extract::{Query, State};
 use axum::http::{HeaderMap, HeaderValue, header};
@@ -16,6 +17,7 @@ use citymesh_core::building::roof::RoofShape;
 use citymesh_core::building::set::BuildingSet;
 use citymesh_core::geojson::write_geojson;
 use citymesh_core::procedural::{LayoutType, ProceduralCity, ProceduralParams, generate_city};
+use citymesh_core::scene::SceneArea;
 use serde::Deserialize;
 use std::sync::Arc;
 use utoipa::IntoParams;
@@ -133,8 +135,10 @@ async fn city(
 /// as `/procedural.glb` with the same parameters.
 #[utoipa::path(get, path = "/procedural.geojson", tag = "procedural", params(ProceduralQuery),
     responses(
-        (status = 200, description = "The definitions", content_type = "application/geo+json", body = serde_json::Value),
+        (status = 200, description = "The definitions", content_type = "application/geo+json", body = Object),
+        (status = 304, description = "Not modified: the If-None-Match ETag is current"),
         (status = 400, description = "A parameter is malformed or out of range", body = ErrorBody),
+        (status = 500, description = "An internal failure; the server log has the cause", body = ErrorBody),
     ))]
 pub async fn procedural_geojson(
     State(state): State<AppState>,
@@ -149,10 +153,10 @@ pub async fn procedural_geojson(
         HeaderValue::from_static("application/geo+json"),
     );
     let etag = etag_of(&body);
-    Ok(glb_response(
+    Ok(conditional_response(
         &request_headers,
         body,
-        etag,
+        &etag,
         headers,
         "public, max-age=3600",
     ))
@@ -164,8 +168,11 @@ pub async fn procedural_geojson(
 /// (flat at 0 m, or the DEM where one covers it). The headers are those of `/scene.glb`.
 #[utoipa::path(get, path = "/procedural.glb", tag = "procedural", params(ProceduralQuery),
     responses(
-        (status = 200, description = "The city", content_type = "model/gltf-binary", body = Vec<u8>),
+        (status = 200, description = "The city", content_type = "model/gltf-binary", body = inline(GlbBytes)),
+        (status = 304, description = "Not modified: the If-None-Match ETag is current"),
         (status = 400, description = "A parameter is malformed or out of range", body = ErrorBody),
+        (status = 500, description = "An internal failure; the server log has the cause", body = ErrorBody),
+        (status = 503, description = "Every generation slot is busy, or generation took too long; see Retry-After", body = ErrorBody),
     ))]
 pub async fn procedural_glb(
     State(state): State<AppState>,
@@ -175,7 +182,7 @@ pub async fn procedural_glb(
     let city = city(&state, query).await?;
     let bbox = city.bbox;
     let set = tokio::task::spawn_blocking(move || Arc::new(BuildingSet::new(city.records))).await?;
-    let generated = generate(&state, Area::Buildings { bbox, set }).await?;
+    let generated = generate(&state, SceneArea::Given(bbox), Buildings::Given(set)).await?;
     Ok(generated_response(
         &request_headers,
         generated,

@@ -1,23 +1,107 @@
-//! `GET /scene.glb?bbox=`: the mesh of an area.
+//! `GET /scene?bbox=` and `GET /scene.glb?bbox=`: the mesh of an area (or, from `/scene`, its
+//! statistics as JSON).
 
 use super::conditional::generated_response;
+use super::params::{BboxQuery, parse_bbox};
+use super::scene_stats::SceneStats;
+use super::schemas::GlbBytes;
 use crate::error::{AppError, ErrorBody};
-use crate::generate::{Area, generate};
+use crate::pipeline::{Buildings, Generated, generate};
 use crate::state::AppState;
+use axum::Json;
 use axum::extract::rejection::QueryRejection;
 use axum::extract::{Query, State};
-use axum::http::HeaderMap;
-use axum::response::Response;
-use citymesh_core::geo::GeoBbox;
+use axum::http::{HeaderMap, header};
+use axum::response::{IntoResponse, Response};
+use citymesh_core::scene::SceneArea;
 use serde::Deserialize;
-use utoipa::IntoParams;
+use utoipa::{IntoParams, ToSchema};
+
+/// Scenes cut at their box change only when their data does; they are not cached here.
+const SCENE_CACHE_CONTROL: &str = "public, max-age=300";
+
+/// What `/scene` answers with.
+#[derive(Debug, Clone, Copy, Deserialize, ToSchema, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum SceneFormat {
+    /// Binary glTF, the same bytes as `/scene.glb`.
+    Glb,
+    /// The statistics `/scene/stats` gives.
+    Json,
+}
 
 #[derive(Debug, Deserialize, IntoParams)]
 #[into_params(parameter_in = Query)]
 pub struct SceneQuery {
-    /// The area as `minLon,minLat,maxLon,maxLat` in WGS84 degrees, e.g. `8.39,49.04,8.41,49.06`.
-    /// Latitudes within ±85.0511; the area may not exceed the server's limit (25 km² by default).
+    /// The area as `minLon,minLat,maxLon,maxLat` in WGS84 degrees, e.g. `8.400,49.010,8.409,49.017`
+    /// (the demo city). Latitudes within ±85.0511; the area may not exceed the server's limit (25 km²
+    /// by default).
+    #[param(pattern = r"^\s*-?[0-9.eE+-]+\s*(,\s*-?[0-9.eE+-]+\s*){3}$", example = "8.400,49.010,8.409,49.017")]
     pub bbox: Option<String>,
+    /// `glb` (the default) or `json`. Without it, an `Accept` header that names
+    /// `application/json` and not `model/gltf-binary` chooses `json`.
+    #[param(inline)]
+    pub format: Option<SceneFormat>,
+}
+
+/// The mesh of a bounding box (binary glTF), or its statistics (JSON).
+///
+/// The same scene as `/scene.glb`, byte for byte, by default. With `format=json` (or
+/// `Accept: application/json`), the figures `/scene/stats` gives for the same box.
+#[utoipa::path(get, path = "/scene", tag = "meshes", params(SceneQuery),
+    responses(
+        (status = 200, description = "The scene, or its statistics", content(
+            (GlbBytes = "model/gltf-binary"),
+            (SceneStats = "application/json"),
+        )),
+        (status = 304, description = "Not modified: the If-None-Match ETag is current"),
+        (status = 400, description = "The bbox is missing, malformed, inverted, out of range or too large, or the format is unknown", body = ErrorBody),
+        (status = 500, description = "An internal failure; the server log has the cause", body = ErrorBody),
+        (status = 502, description = "Overpass failed or sent an incomplete answer; nothing was stored", body = ErrorBody),
+        (status = 503, description = "Overpass is rate limiting, or every generation slot is busy; see Retry-After", body = ErrorBody),
+        (status = 504, description = "Overpass did not answer in time", body = ErrorBody),
+    ))]
+pub async fn scene(
+    State(state): State<AppState>,
+    request_headers: HeaderMap,
+    query: Result<Query<SceneQuery>, QueryRejection>,
+) -> Result<Response, AppError> {
+    let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
+    let format = query
+        .format
+        .unwrap_or_else(|| negotiate(&request_headers));
+    let generated = generate_box(&state, query.bbox.as_deref()).await?;
+    Ok(match format {
+        SceneFormat::Glb => {
+            generated_response(&request_headers, generated, SCENE_CACHE_CONTROL)
+        }
+        SceneFormat::Json => Json(SceneStats::of(&generated)).into_response(),
+    })
+}
+
+/// JSON when the client accepts JSON and does not name binary glTF.
+fn negotiate(request: &HeaderMap) -> SceneFormat {
+    let accept = request
+        .get_all(header::ACCEPT)
+        .iter()
+        .filter_map(|v| v.to_str().ok())
+        .collect::<Vec<_>>()
+        .join(",")
+        .to_ascii_lowercase();
+    if accept.contains("application/json") && !accept.contains("model/gltf-binary") {
+        SceneFormat::Json
+    } else {
+        SceneFormat::Glb
+    }
+}
+
+/// Generates the box scene of a `bbox` parameter.
+pub(super) async fn generate_box(
+    state: &AppState,
+    bbox: Option<&str>,
+) -> Result<Generated, AppError> {
+    let bbox = parse_bbox(bbox, state.limits.max_bbox_km2)?;
+    generate(state, SceneArea::Bbox(bbox), Buildings::FromSource).await
 }
 
 /// The mesh of a bounding box as binary glTF: the ground and the buildings of the server's OSM
@@ -28,13 +112,13 @@ pub struct SceneQuery {
 /// The response headers `X-Citymesh-*` give the generation time, vertex and triangle counts, and
 /// whether the ground came from the DEM or the flat 0 m fallback, and the building figures that
 /// `/scene/stats` gives in full.
-#[utoipa::path(get, path = "/scene.glb", tag = "meshes", params(SceneQuery),
+#[utoipa::path(get, path = "/scene.glb", tag = "meshes", params(BboxQuery),
     responses(
-        (status = 200, description = "The scene", content_type = "model/gltf-binary", body = Vec<u8>,
+        (status = 200, description = "The scene", content_type = "model/gltf-binary", body = inline(GlbBytes),
             headers(
                 ("X-Citymesh-Generation-Ms" = f64, description = "Generation time in milliseconds"),
-                ("X-Citymesh-Vertices" = u64, description = "Vertices of the generated mesh"),
-                ("X-Citymesh-Triangles" = u64, description = "Triangles of the generated mesh"),
+                ("X-Citymesh-Vertices" = u64, description = "Vertices in the file"),
+                ("X-Citymesh-Triangles" = u64, description = "Triangles in the file"),
                 ("X-Citymesh-Void-Cells" = u64, description = "Ground cells left empty by DEM voids"),
                 ("X-Citymesh-Ground" = String, description = "`dem`, or `flat-fallback; missing=N49E008,...`"),
                 ("X-Citymesh-Osm" = String, description = "Where the buildings came from: `files`, `stored`, or `missing=14/x/y (offline: no buildings there)`"),
@@ -46,6 +130,7 @@ pub struct SceneQuery {
             )),
         (status = 304, description = "Not modified: the If-None-Match ETag is current"),
         (status = 400, description = "The bbox is missing, malformed, inverted, out of range or too large", body = ErrorBody),
+        (status = 500, description = "An internal failure; the server log has the cause", body = ErrorBody),
         (status = 502, description = "Overpass failed or sent an incomplete answer; nothing was stored", body = ErrorBody),
         (status = 503, description = "Overpass is rate limiting, or every generation slot is busy; see Retry-After", body = ErrorBody),
         (status = 504, description = "Overpass did not answer in time", body = ErrorBody),
@@ -53,37 +138,13 @@ pub struct SceneQuery {
 pub async fn scene_glb(
     State(state): State<AppState>,
     request_headers: HeaderMap,
-    query: Result<Query<SceneQuery>, QueryRejection>,
+    query: Result<Query<BboxQuery>, QueryRejection>,
 ) -> Result<Response, AppError> {
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
-    let bbox = parse_bbox(query.bbox.as_deref(), state.limits.max_bbox_km2)?;
-    let generated = generate(&state, Area::Scene(bbox)).await?;
+    let generated = generate_box(&state, query.bbox.as_deref()).await?;
     Ok(generated_response(
         &request_headers,
         generated,
-        "public, max-age=300",
+        SCENE_CACHE_CONTROL,
     ))
-}
-
-/// Checks a `bbox` parameter against the format and the area limit.
-pub(crate) fn parse_bbox(text: Option<&str>, max_km2: f64) -> Result<GeoBbox, AppError> {
-    let text = text.ok_or_else(|| {
-        AppError::bad_request(
-            "missing_bbox",
-            "add ?bbox=minLon,minLat,maxLon,maxLat, e.g. ?bbox=8.39,49.04,8.41,49.06",
-        )
-    })?;
-    let bbox: GeoBbox = text
-        .parse()
-        .map_err(|e| AppError::bad_request("invalid_bbox", format!("bbox: {e}")))?;
-    let area = bbox.area_km2();
-    if area > max_km2 {
-        return Err(AppError::bad_request(
-            "bbox_too_large",
-            format!(
-                "the bbox covers {area:.2} km², more than this server's limit of {max_km2} km²: request a smaller area or tiles"
-            ),
-        ));
-    }
-    Ok(bbox)
 }

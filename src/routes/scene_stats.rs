@@ -1,8 +1,9 @@
 //! `GET /scene/stats?bbox=`: what went into the scene of an area, as JSON.
 
-use super::scene::{SceneQuery, parse_bbox};
+use super::params::BboxQuery;
+use super::scene::generate_box;
 use crate::error::{AppError, ErrorBody};
-use crate::generate::{Area, generate};
+use crate::pipeline::Generated;
 use crate::state::AppState;
 use axum::Json;
 use axum::extract::rejection::QueryRejection;
@@ -16,7 +17,7 @@ use utoipa::ToSchema;
 pub struct SceneStats {
     /// Generation time of the mesh and its GLB, milliseconds.
     pub generation_ms: f64,
-    /// Vertices and triangles of the generated mesh (ground and buildings).
+    /// Vertices and triangles in the GLB (ground and buildings).
     pub vertices: usize,
     pub triangles: usize,
     /// Size of the GLB `/scene.glb` returns for the same box.
@@ -79,62 +80,72 @@ pub struct GroundFigures {
 /// Generates the same scene as `/scene.glb` and reports generation time, vertex and triangle
 /// counts, the share of flat roofs and of roof shapes from tags (the paper's Tables 2 and 3),
 /// buildings generated and skipped with reasons, and where the ground came from.
-#[utoipa::path(get, path = "/scene/stats", tag = "meshes", params(SceneQuery),
+#[utoipa::path(get, path = "/scene/stats", tag = "meshes", params(BboxQuery),
     responses(
         (status = 200, description = "The figures", body = SceneStats),
         (status = 400, description = "The bbox is missing, malformed, inverted, out of range or too large", body = ErrorBody),
+        (status = 500, description = "An internal failure; the server log has the cause", body = ErrorBody),
+        (status = 502, description = "Overpass failed or sent an incomplete answer; nothing was stored", body = ErrorBody),
+        (status = 503, description = "Overpass is rate limiting, or every generation slot is busy; see Retry-After", body = ErrorBody),
+        (status = 504, description = "Overpass did not answer in time", body = ErrorBody),
     ))]
 pub async fn scene_stats(
     State(state): State<AppState>,
-    query: Result<Query<SceneQuery>, QueryRejection>,
+    query: Result<Query<BboxQuery>, QueryRejection>,
 ) -> Result<Json<SceneStats>, AppError> {
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
-    let bbox = parse_bbox(query.bbox.as_deref(), state.limits.max_bbox_km2)?;
-    let generated = generate(&state, Area::Scene(bbox)).await?;
-    let s = generated.stats;
-    let b = s.buildings;
-    Ok(Json(SceneStats {
-        generation_ms: s.generation_ms,
-        vertices: s.vertices,
-        triangles: s.triangles,
-        glb_bytes: generated.glb.len(),
-        flat_roof_percent: b.flat_roof_percent(),
-        roof_shape_from_tag_percent: b.shape_from_tag_percent(),
-        buildings: BuildingFigures {
-            generated: b.generated,
-            parts: b.parts,
-            skipped: b
-                .skipped
-                .iter()
-                .map(|(k, v)| ((*k).to_owned(), *v))
-                .collect(),
-            skipped_ids: b
-                .skipped_ids
-                .iter()
-                .map(|(id, reason)| SkippedBuilding {
-                    id: id.clone(),
-                    reason: (*reason).to_owned(),
-                })
-                .collect(),
-            roof_shapes: b
-                .roof_shapes
-                .iter()
-                .map(|(k, v)| ((*k).to_owned(), *v))
-                .collect(),
-            roof_shape_from_tag: b.shape_from_tag,
-            roof_shape_default: b.shape_default,
-            roof_shape_unsupported: b.shape_unsupported,
-            height_from_tag: b.height_from_tag,
-            height_from_levels: b.height_from_levels,
-            height_default: b.height_default,
-            invalid_tag_values: b.invalid_tags,
-            outlines_covered_by_parts: b.outlines_covered_by_parts,
-            shared_walls: b.shared_walls,
-        },
-        ground: GroundFigures {
-            cells: s.ground.cells,
-            void_cells: s.ground.void_cells,
-            missing_dem: s.missing_dem,
-        },
-    }))
+    let generated = generate_box(&state, query.bbox.as_deref()).await?;
+    Ok(Json(SceneStats::of(&generated)))
+}
+
+impl SceneStats {
+    /// The figures of a generated scene.
+    pub fn of(generated: &Generated) -> Self {
+        let s = &generated.stats;
+        let b = &s.buildings;
+        SceneStats {
+            generation_ms: s.generation_ms,
+            vertices: s.vertices,
+            triangles: s.triangles,
+            glb_bytes: generated.glb.len(),
+            flat_roof_percent: b.flat_roof_percent(),
+            roof_shape_from_tag_percent: b.shape_from_tag_percent(),
+            buildings: BuildingFigures {
+                generated: b.generated,
+                parts: b.parts,
+                skipped: b
+                    .skipped
+                    .iter()
+                    .map(|(k, v)| ((*k).to_owned(), *v))
+                    .collect(),
+                skipped_ids: b
+                    .skipped_ids
+                    .iter()
+                    .map(|(id, reason)| SkippedBuilding {
+                        id: id.clone(),
+                        reason: (*reason).to_owned(),
+                    })
+                    .collect(),
+                roof_shapes: b
+                    .roof_shapes
+                    .iter()
+                    .map(|(k, v)| ((*k).to_owned(), *v))
+                    .collect(),
+                roof_shape_from_tag: b.shape_from_tag,
+                roof_shape_default: b.shape_default,
+                roof_shape_unsupported: b.shape_unsupported,
+                height_from_tag: b.height_from_tag,
+                height_from_levels: b.height_from_levels,
+                height_default: b.height_default,
+                invalid_tag_values: b.invalid_tags,
+                outlines_covered_by_parts: b.outlines_covered_by_parts,
+                shared_walls: b.shared_walls,
+            },
+            ground: GroundFigures {
+                cells: s.ground.cells,
+                void_cells: s.ground.void_cells,
+                missing_dem: s.missing_dem.clone(),
+            },
+        }
+    }
 }

@@ -3,16 +3,18 @@
 //! covers it. This is how a user fixes a wrong roof shape in real data and rebuilds.
 
 use super::conditional::generated_response;
+use super::schemas::GlbBytes;
 use crate::error::{AppError, ErrorBody};
-use crate::generate::{Area, generate};
+use crate::pipeline::{Buildings, generate};
 use crate::state::AppState;
 use axum::body::Body;
 use axum::extract::State;
 use axum::http::{HeaderMap, StatusCode, header};
 use axum::response::Response;
 use citymesh_core::building::set::BuildingSet;
-use citymesh_core::geo::{GeoBbox, LocalFrame};
+use citymesh_core::geo::GeoBbox;
 use citymesh_core::geojson::{GeoJsonErrorKind, read_geojson};
+use citymesh_core::scene::SceneArea;
 use std::sync::Arc;
 
 /// Ground around the buildings when the collection has no `bbox`, metres.
@@ -41,11 +43,13 @@ fn document(status: StatusCode, code: &'static str, detail: String) -> AppError 
     request_body(content = serde_json::Value, content_type = "application/geo+json",
         description = "A GeoJSON FeatureCollection of buildings"),
     responses(
-        (status = 200, description = "The scene", content_type = "model/gltf-binary", body = Vec<u8>),
+        (status = 200, description = "The scene", content_type = "model/gltf-binary", body = inline(GlbBytes)),
         (status = 400, description = "The area is larger than the server's limit", body = ErrorBody),
         (status = 413, description = "The body, or its number of features or positions, is over the limit", body = ErrorBody),
         (status = 415, description = "Not sent as JSON", body = ErrorBody),
         (status = 422, description = "Not JSON, not a FeatureCollection, or a feature is invalid (the body names which and why)", body = ErrorBody),
+        (status = 500, description = "An internal failure; the server log has the cause", body = ErrorBody),
+        (status = 503, description = "Every generation slot is busy, or generation took too long; see Retry-After", body = ErrorBody),
     ))]
 pub async fn post_scene(
     State(state): State<AppState>,
@@ -123,7 +127,7 @@ pub async fn post_scene(
     }
     let set =
         tokio::task::spawn_blocking(move || Arc::new(BuildingSet::new(scene.records))).await?;
-    let generated = generate(&state, Area::Buildings { bbox, set }).await?;
+    let generated = generate(&state, SceneArea::Given(bbox), Buildings::Given(set)).await?;
     Ok(generated_response(&request_headers, generated, "no-store"))
 }
 
@@ -142,14 +146,7 @@ fn extent_with_margin(records: &[citymesh_core::osm::BuildingRecord]) -> Option<
             e[3].max(n.lat),
         ];
     }
-    let (mx, my) =
-        LocalFrame::new((e[0] + e[2]) / 2.0, (e[1] + e[3]) / 2.0, 0.0).metres_per_degree();
-    let (dx, dy) = (MARGIN_M / mx, MARGIN_M / my);
-    GeoBbox::new(
-        (e[0] - dx).max(-180.0),
-        (e[1] - dy).max(-85.05),
-        (e[2] + dx).min(180.0),
-        (e[3] + dy).min(85.05),
-    )
-    .ok()
+    GeoBbox::new(e[0], e[1], e[2], e[3])
+        .ok()
+        .map(|b| b.grown_by_metres(MARGIN_M))
 }

@@ -1,31 +1,34 @@
-//! `GET /tiles/{z}/{x}/{y}.glb`: Web Mercator XYZ tiles, kept in the SQLite tile cache.
+//! `GET /tiles/{z}/{x}/{y}.glb`: Web Mercator XYZ tiles, through the tile cache.
 
 use super::conditional::cached_response;
+use super::schemas::GlbBytes;
+use crate::cache::TileKey;
 use crate::error::{AppError, ErrorBody};
-use crate::generate::{Area, generate};
+use crate::pipeline::{Buildings, generate};
 use crate::state::AppState;
 use axum::extract::rejection::PathRejection;
 use axum::extract::{Path, State};
 use axum::http::HeaderMap;
 use axum::response::Response;
 use citymesh_core::geo::TileCoord;
+use citymesh_core::scene::SceneArea;
 
 /// One XYZ tile as binary glTF.
 ///
 /// Each tile holds the ground clipped exactly to its bounds and, whole, the buildings whose
-/// cluster (buildings that touch, an outline with its parts) has its representative point, the
+/// group (buildings that touch, an outline with its parts) has its representative point, the
 /// centre of its bounding box, in the tile: every building lands in exactly one tile of a zoom
 /// level and is never cut. Buildings may reach past the tile's edge. The local frame's origin (the
 /// tile centre at 0 m above sea level) is stored in `scenes[0].extras.origin`. Zoom levels
 /// outside the served range (12 to 20 by default) answer 404.
-#[utoipa::path(get, path = "/tiles/{z}/{x}/{y}.glb", tag = "meshes",
+#[utoipa::path(get, path = "/tiles/{z}/{x}/{y}", tag = "meshes",
     params(
-        ("z" = u8, Path, description = "Zoom level"),
-        ("x" = u32, Path, description = "Column, 0 at 180° W"),
-        ("y" = u32, Path, description = "Row, 0 at 85.0511° N"),
+        ("z" = u8, Path, description = "Zoom level (the server serves 12 to 20 by default)", minimum = 0, maximum = 30, example = 16),
+        ("x" = u32, Path, description = "Column, 0 at 180° W; below 2^z", minimum = 0, example = 34297),
+        ("y" = u32, Path, description = "Row, 0 at 85.0511° N; below 2^z", minimum = 0, example = 22502),
     ),
     responses(
-        (status = 200, description = "The tile", content_type = "model/gltf-binary", body = Vec<u8>,
+        (status = 200, description = "The tile", content_type = "model/gltf-binary", body = inline(GlbBytes),
             headers(
                 ("X-Citymesh-Cache" = String, description = "`hit` (memory), `sqlite` (the on-disk cache) or `miss` (generated now)"),
                 ("ETag" = String, description = "Strong validator of the bytes; send it back in If-None-Match"),
@@ -34,6 +37,7 @@ use citymesh_core::geo::TileCoord;
         (status = 304, description = "Not modified: the If-None-Match ETag is current"),
         (status = 400, description = "z, x or y is not a number or out of range", body = ErrorBody),
         (status = 404, description = "The zoom level is not served, or the format is not .glb", body = ErrorBody),
+        (status = 500, description = "An internal failure; the server log has the cause", body = ErrorBody),
         (status = 502, description = "Overpass failed or sent an incomplete answer; nothing was stored", body = ErrorBody),
         (status = 503, description = "Overpass is rate limiting, or every generation slot is busy; see Retry-After", body = ErrorBody),
         (status = 504, description = "Overpass did not answer in time", body = ErrorBody),
@@ -57,9 +61,9 @@ pub async fn tile_glb(
     }
     let (cached, level) = state
         .tiles
-        .get_or_generate("", tile, || async {
-            let g = generate(&state, Area::Tile(tile)).await?;
-            Ok((g.glb, g.stats))
+        .get_or_generate(TileKey::xyz(tile), || async {
+            let g = generate(&state, SceneArea::Xyz(tile), Buildings::FromSource).await?;
+            Ok::<_, AppError>((g.glb, g.stats))
         })
         .await?;
     Ok(cached_response(
@@ -78,7 +82,7 @@ fn parse_tile(z: &str, x: &str, y: &str) -> Result<TileCoord, AppError> {
     let Some(y) = y.strip_suffix(".glb") else {
         return Err(AppError::not_found(
             "unknown_format",
-            format!("'{y}': tiles are served as .glb, e.g. /tiles/16/34297/22492.glb"),
+            format!("'{y}': tiles are served as .glb, e.g. /tiles/16/34297/22502.glb"),
         ));
     };
     let number = |name: &str, text: &str| {

@@ -1,113 +1,35 @@
 //! 3D Tiles 1.1 for CesiumJS and 3d-tiles-renderer: `GET /3dtiles/tileset.json` (optionally
-//! `?bbox=`), and the binary subtrees and ECEF glb content its implicit quadtree names, generated
-//! on demand through the same caches as the XYZ tiles.
+//! `?bbox=`), and the binary subtrees and ECEF glb content its implicit quadtree names; content
+//! goes through the same tile cache as XYZ tiles.
 
 use super::conditional::cached_response;
-use super::scene::parse_bbox;
+use super::params::{BboxQuery, parse_bbox};
+use super::schemas::{GlbBytes, SubtreeBytes};
+use crate::cache::TileKey;
 use crate::error::{AppError, ErrorBody};
-use crate::generate::{Area, generate, implicit_bbox};
-use crate::osm::OsmSource;
+use crate::pipeline::{self, Buildings, generate};
 use crate::state::AppState;
 use axum::Json;
 use axum::extract::rejection::{PathRejection, QueryRejection};
 use axum::extract::{Path, Query, State};
 use axum::http::{HeaderMap, header};
 use axum::response::{IntoResponse, Response};
-use citymesh_core::building::tags::parse_length;
-use citymesh_core::geo::{GeoBbox, ImplicitTile, TileCoord};
-use citymesh_core::tiles3d::{ImplicitLayout, tileset_json, write_subtree};
-use serde::Deserialize;
-use std::collections::HashSet;
-use utoipa::IntoParams;
+use citymesh_core::geo::{GeoBbox, ImplicitTile};
+use citymesh_core::scene::SceneArea;
+use citymesh_core::tiles3d::{ImplicitLayout, tileset_json};
 
-#[derive(Debug, Deserialize, IntoParams)]
-#[into_params(parameter_in = Query)]
-pub struct TilesetQuery {
-    /// The region as `minLon,minLat,maxLon,maxLat`; default: the extent of the served buildings
-    /// (the demo city, or the `--osm` files). Required when buildings come from data tiles.
-    pub bbox: Option<String>,
-}
-
-/// The region in a URL path, exactly as `GeoBbox` parses it back.
-fn bbox_path(b: &GeoBbox) -> String {
-    format!(
-        "{},{},{},{}",
-        b.min_lon(),
-        b.min_lat(),
-        b.max_lon(),
-        b.max_lat()
-    )
-}
-
+/// The tree's root: the `bbox` given, else the extent of the served buildings.
 fn root_for(state: &AppState, text: Option<&str>) -> Result<GeoBbox, AppError> {
     if let Some(t) = text {
         return parse_bbox(Some(t), state.limits.max_bbox_km2);
     }
-    match state.osm.as_ref() {
-        OsmSource::Files(data) => data.set.extent().ok_or_else(|| {
-            AppError::not_found(
-                "no_buildings",
-                "no buildings are loaded: give ?bbox=minLon,minLat,maxLon,maxLat",
-            )
-        }),
-        OsmSource::Tiles(_) => Err(AppError::bad_request(
+    state.source.extent().ok_or_else(|| {
+        AppError::bad_request(
             "missing_bbox",
-            "this server fetches OSM data by area: add ?bbox=minLon,minLat,maxLon,maxLat",
-        )),
-    }
-}
-
-/// The leaves at `leaf_level` that have content: those holding a cluster's representative point.
-async fn content_leaves(
-    state: &AppState,
-    root: GeoBbox,
-    leaf_level: u8,
-) -> Result<HashSet<(u32, u32)>, AppError> {
-    let buildings = state.osm.area(&root).await?;
-    let leaves = tokio::task::spawn_blocking(move || {
-        buildings
-            .set
-            .clusters_intersecting(&root)
-            .iter()
-            .map(|c| c.representative_point())
-            .filter(|(lon, lat)| root.contains(*lon, *lat))
-            .map(|(lon, lat)| {
-                let t = ImplicitTile::containing(&root, leaf_level, lon, lat);
-                (t.x, t.y)
-            })
-            .collect()
+            "this server fetches OSM data by area (or has none loaded): add \
+             ?bbox=minLon,minLat,maxLon,maxLat",
+        )
     })
-    .await?;
-    Ok(leaves)
-}
-
-/// The tree over a region with its height range from the DEM and the tallest building.
-async fn layout(state: &AppState, root: GeoBbox) -> Result<ImplicitLayout, AppError> {
-    let buildings = state.osm.area(&root).await?;
-    let dem = state.dem.clone();
-    let layout = tokio::task::spawn_blocking(move || {
-        let model = dem.lookup(&root).model;
-        let (mut lo, mut hi) = (f64::MAX, f64::MIN);
-        for i in 0..=32 {
-            for j in 0..=32 {
-                let lon = root.min_lon() + (root.max_lon() - root.min_lon()) * f64::from(i) / 32.0;
-                let lat = root.min_lat() + (root.max_lat() - root.min_lat()) * f64::from(j) / 32.0;
-                let h = model.ground_height(lon, lat);
-                lo = lo.min(h);
-                hi = hi.max(h);
-            }
-        }
-        let set = &buildings.set;
-        let tallest = set
-            .clusters_intersecting(&root)
-            .iter()
-            .flat_map(|c| set.cluster_records(c))
-            .filter_map(|r| r.tags.get("height").and_then(|h| parse_length(h)))
-            .fold(60.0f64, f64::max);
-        ImplicitLayout::new(root, lo - 20.0, hi + tallest + 20.0)
-    })
-    .await?;
-    Ok(layout)
 }
 
 /// The region and tile of a `/3dtiles/area/{bbox}/.../{level}/{x}/{y}{ext}` path.
@@ -120,27 +42,6 @@ fn implicit_request(
         path.map_err(|e| AppError::bad_request("invalid_tile", e.body_text()))?;
     let root = parse_bbox(Some(&bbox), state.limits.max_bbox_km2)?;
     Ok((root, parse_implicit(&level, &x, &y, ext)?))
-}
-
-/// A 3D Tiles 1.1 tileset with implicit quadtree tiling over a region.
-///
-/// The root's bounding volume is a `region` (radians; heights from the DEM and the buildings);
-/// each level halves it in longitude and latitude (y counted from the south); content (glb,
-/// ECEF) sits at the deepest level, tiles of at most 400 m. Subtrees are binary.
-#[utoipa::path(get, path = "/3dtiles/tileset.json", tag = "3d tiles", params(TilesetQuery),
-    responses(
-        (status = 200, description = "The tileset", body = serde_json::Value),
-        (status = 400, description = "The bbox is malformed or too large, or needed and missing", body = ErrorBody),
-    ))]
-pub async fn tileset(
-    State(state): State<AppState>,
-    query: Result<Query<TilesetQuery>, QueryRejection>,
-) -> Result<Response, AppError> {
-    let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
-    let root = root_for(&state, query.bbox.as_deref())?;
-    let layout = layout(&state, root).await?;
-    let json = tileset_json(&layout, &format!("area/{}/", bbox_path(&root)));
-    Ok(([(header::CACHE_CONTROL, "public, max-age=300")], Json(json)).into_response())
 }
 
 fn parse_implicit(level: &str, x: &str, y: &str, ext: &str) -> Result<ImplicitTile, AppError> {
@@ -170,45 +71,60 @@ fn parse_implicit(level: &str, x: &str, y: &str, ext: &str) -> Result<ImplicitTi
     Ok(t)
 }
 
-/// A binary subtree file (the tree has one subtree, at the root).
-#[utoipa::path(get, path = "/3dtiles/area/{bbox}/subtrees/{level}/{x}/{y}.subtree", tag = "3d tiles",
-    params(("bbox" = String, Path, description = "minLon,minLat,maxLon,maxLat"),
-           ("level" = u8, Path), ("x" = u32, Path), ("y" = u32, Path)),
+/// A 3D Tiles 1.1 tileset with implicit quadtree tiling over a region.
+///
+/// The root's bounding volume is a `region` (radians; heights from the DEM and the buildings);
+/// each level halves it in longitude and latitude (y counted from the south); content (glb,
+/// ECEF) sits at the deepest level, tiles of at most 400 m. Subtrees are binary. Without `bbox`,
+/// the region is the extent of the served buildings (the demo city, or the `--osm` files); a
+/// server that fetches data by area needs it.
+#[utoipa::path(get, path = "/3dtiles/tileset.json", tag = "3d tiles", params(BboxQuery),
     responses(
-        (status = 200, description = "The subtree", content_type = "application/octet-stream", body = Vec<u8>),
-        (status = 404, description = "No such subtree", body = ErrorBody),
+        (status = 200, description = "The tileset", body = Object),
+        (status = 400, description = "The bbox is malformed or too large, or needed and missing", body = ErrorBody),
+        (status = 500, description = "An internal failure; the server log has the cause", body = ErrorBody),
+        (status = 502, description = "Overpass failed or sent an incomplete answer; nothing was stored", body = ErrorBody),
+        (status = 503, description = "Overpass is rate limiting, or the request took too long; see Retry-After", body = ErrorBody),
+        (status = 504, description = "Overpass did not answer in time", body = ErrorBody),
+    ))]
+pub async fn tileset(
+    State(state): State<AppState>,
+    query: Result<Query<BboxQuery>, QueryRejection>,
+) -> Result<Response, AppError> {
+    let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
+    let root = root_for(&state, query.bbox.as_deref())?;
+    let layout = pipeline::tileset_layout(&state, root).await?;
+    let json = tileset_json(&layout, &format!("area/{root}/"));
+    Ok(([(header::CACHE_CONTROL, "public, max-age=300")], Json(json)).into_response())
+}
+
+/// A binary subtree file (the tree has one subtree, at the root).
+#[utoipa::path(get, path = "/3dtiles/area/{bbox}/subtrees/{level}/{x}/{y}", tag = "3d tiles",
+    params(("bbox" = String, Path, description = "The tree's region, minLon,minLat,maxLon,maxLat", example = "8.400,49.010,8.409,49.017"),
+           ("level" = u8, Path, description = "Level of the subtree's root (only 0 exists)", minimum = 0, maximum = 30),
+           ("x" = u32, Path, description = "Column at that level, from the west", minimum = 0),
+           ("y" = u32, Path, description = "Row at that level, from the south", minimum = 0)),
+    responses(
+        (status = 200, description = "The subtree", content_type = "application/octet-stream", body = inline(SubtreeBytes)),
+        (status = 400, description = "The region or a coordinate is malformed, or the region too large", body = ErrorBody),
+        (status = 404, description = "No such subtree, or the format is not .subtree", body = ErrorBody),
+        (status = 500, description = "An internal failure; the server log has the cause", body = ErrorBody),
+        (status = 502, description = "Overpass failed or sent an incomplete answer; nothing was stored", body = ErrorBody),
+        (status = 503, description = "Overpass is rate limiting, or the request took too long; see Retry-After", body = ErrorBody),
+        (status = 504, description = "Overpass did not answer in time", body = ErrorBody),
     ))]
 pub async fn subtree(
     State(state): State<AppState>,
     path: Result<Path<(String, String, String, String)>, PathRejection>,
 ) -> Result<Response, AppError> {
     let (root, t) = implicit_request(&state, path, ".subtree")?;
-    if t != (ImplicitTile {
-        level: 0,
-        x: 0,
-        y: 0,
-    }) {
+    if (t.level, t.x, t.y) != (0, 0, 0) {
         return Err(AppError::not_found(
             "no_such_subtree",
             "this tree has one subtree, at 0/0/0",
         ));
     }
-    let layout = layout(&state, root).await?;
-    let leaf = layout.leaf_level;
-    let leaves = content_leaves(&state, root, leaf).await?;
-    let has_content = |t: ImplicitTile| {
-        let shift = leaf - t.level.min(leaf);
-        leaves
-            .iter()
-            .any(|&(x, y)| (x >> shift, y >> shift) == (t.x, t.y))
-    };
-    let bytes = write_subtree(
-        t,
-        layout.available_levels(),
-        &|t| t.level == 0 || has_content(t),
-        &|t| t.level == leaf && has_content(t),
-        &|_| false,
-    );
+    let bytes = pipeline::subtree(&state, root).await?;
     Ok((
         [
             (header::CONTENT_TYPE, "application/octet-stream"),
@@ -221,12 +137,20 @@ pub async fn subtree(
 
 /// A content tile: glb in ECEF (positions relative to a node translation, under the z-up to y-up
 /// node matrix), the ground of the tile and its buildings.
-#[utoipa::path(get, path = "/3dtiles/area/{bbox}/content/{level}/{x}/{y}.glb", tag = "3d tiles",
-    params(("bbox" = String, Path, description = "minLon,minLat,maxLon,maxLat"),
-           ("level" = u8, Path), ("x" = u32, Path), ("y" = u32, Path)),
+#[utoipa::path(get, path = "/3dtiles/area/{bbox}/content/{level}/{x}/{y}", tag = "3d tiles",
+    params(("bbox" = String, Path, description = "The tree's region, minLon,minLat,maxLon,maxLat", example = "8.400,49.010,8.409,49.017"),
+           ("level" = u8, Path, description = "Level (content sits at the deepest level only)", minimum = 0, maximum = 30),
+           ("x" = u32, Path, description = "Column at that level, from the west", minimum = 0),
+           ("y" = u32, Path, description = "Row at that level, from the south", minimum = 0)),
     responses(
-        (status = 200, description = "The content", content_type = "model/gltf-binary", body = Vec<u8>),
-        (status = 404, description = "The tile has no content", body = ErrorBody),
+        (status = 200, description = "The content", content_type = "model/gltf-binary", body = inline(GlbBytes)),
+        (status = 304, description = "Not modified: the If-None-Match ETag is current"),
+        (status = 400, description = "The region or a coordinate is malformed, or the region too large", body = ErrorBody),
+        (status = 404, description = "The tile has no content, or the format is not .glb", body = ErrorBody),
+        (status = 500, description = "An internal failure; the server log has the cause", body = ErrorBody),
+        (status = 502, description = "Overpass failed or sent an incomplete answer; nothing was stored", body = ErrorBody),
+        (status = 503, description = "Overpass is rate limiting, or every generation slot is busy; see Retry-After", body = ErrorBody),
+        (status = 504, description = "Overpass did not answer in time", body = ErrorBody),
     ))]
 pub async fn content(
     State(state): State<AppState>,
@@ -234,31 +158,19 @@ pub async fn content(
     path: Result<Path<(String, String, String, String)>, PathRejection>,
 ) -> Result<Response, AppError> {
     let (root, tile) = implicit_request(&state, path, ".glb")?;
-    let no_content = || {
-        AppError::not_found(
+    if tile.level != ImplicitLayout::leaf_level_of(&root) {
+        return Err(AppError::not_found(
             "no_content",
             "this tile has no content (see the subtree's availability)",
-        )
-    };
-    if tile.level != ImplicitLayout::leaf_level_of(&root) {
-        return Err(no_content());
+        ));
     }
-    implicit_bbox(&root, &tile)?;
-    let key = TileCoord {
-        z: tile.level,
-        x: tile.x,
-        y: tile.y,
-    };
-    // Cached content skips the availability check (errors are never cached).
+    let area = SceneArea::Implicit { root, tile };
+    // Errors (a tile without content among them) are never cached.
     let (cached, level) = state
         .tiles
-        .get_or_generate(&bbox_path(&root), key, || async {
-            let leaves = content_leaves(&state, root, tile.level).await?;
-            if !leaves.contains(&(tile.x, tile.y)) {
-                return Err(no_content());
-            }
-            let g = generate(&state, Area::Implicit { root, tile }).await?;
-            Ok((g.glb, g.stats))
+        .get_or_generate(TileKey::implicit(root, tile), || async {
+            let g = generate(&state, area, Buildings::FromSource).await?;
+            Ok::<_, AppError>((g.glb, g.stats))
         })
         .await?;
     Ok(cached_response(

@@ -31,7 +31,7 @@ pub struct OverpassConfig {
 }
 
 /// Why Overpass gave no data. Each maps to the status a client of citymesh sees.
-#[derive(Debug, thiserror::Error)]
+#[derive(Debug, Clone, thiserror::Error)]
 pub enum OverpassError {
     /// Overpass asked us to slow down (429) or is overloaded (503): answer 503.
     #[error("Overpass is rate limiting or overloaded (HTTP {status})")]

@@ -139,6 +139,19 @@ pub fn assert_valid_glb(glb: &[u8]) {
     assert_eq!(report["warnings"], 0, "{report}");
 }
 
+/// Triangles of a GLB: its indices over three, over every primitive.
+pub fn glb_triangle_count(glb: &[u8]) -> usize {
+    let gltf = gltf::Gltf::from_slice(glb).expect("a GLB the gltf crate reads");
+    let blob = gltf.blob.as_deref().unwrap_or_default();
+    gltf.meshes()
+        .flat_map(|m| m.primitives().collect::<Vec<_>>())
+        .map(|p| {
+            let reader = p.reader(|_| Some(blob));
+            reader.read_indices().map_or(0, |i| i.into_u32().count()) / 3
+        })
+        .sum()
+}
+
 /// Decoded positions of a GLB in the local frame `[east, north, up]`, and its origin.
 pub fn glb_positions(glb: &[u8]) -> (Vec<[f64; 3]>, serde_json::Value) {
     let gltf = gltf::Gltf::from_slice(glb).expect("a GLB the gltf crate reads");

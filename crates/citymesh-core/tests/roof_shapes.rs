@@ -1,5 +1,5 @@
 //! The eight roof shapes on a 20 m x 8 m rectangle, axis-aligned and rotated: every roof vertex
-//! has the height the descending level functions of METHOD.md section 6 give (written out here
+//! has the height the descending level functions of docs/method.md section 6 give (written out here
 //! independently of the generator), the shapes' characteristic points are there, and the limit
 //! cases equal the shapes they reduce to, vertex for vertex.
 
@@ -72,7 +72,7 @@ fn g(p: f64, t: f64) -> f64 {
     }
 }
 
-/// The DLF of METHOD.md section 6 at (x', y') for the defaults (HE = GP = MP = 0.7).
+/// The DLF of docs/method.md section 6 at (x', y') for the defaults (HE = GP = MP = 0.7).
 fn expected_dlf(shape: RoofShape, [x, y]: [f64; 2]) -> f64 {
     let x_h = 1.0 - RY / RX;
     match shape {

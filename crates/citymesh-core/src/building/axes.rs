@@ -1,4 +1,4 @@
-//! The alternative coordinate system of a footprint (METHOD.md section 4): two axis directions
+//! The alternative coordinate system of a footprint (docs/method.md section 4): two axis directions
 //! from grouped wall directions, and the virtual rectangle they span.
 
 /// The virtual rectangle of a footprint: `x' = (n.p - x0) / rx`, `y' = (m.p - y0) / ry`, with
@@ -17,7 +17,7 @@ fn dot(a: [f64; 2], b: [f64; 2]) -> f64 {
     a[0] * b[0] + a[1] * b[1]
 }
 
-/// A running group of sides with one direction (step 1 of METHOD.md section 4).
+/// A running group of sides with one direction (step 1 of docs/method.md section 4).
 struct DirectionGroup {
     dir: [f64; 2],
     sum: f64,
@@ -131,7 +131,7 @@ impl RoofAxes {
         best.map(|(_, a)| a)
     }
 
-    /// With x' made the longer axis (METHOD.md section 4: r_x >= r_y).
+    /// With x' made the longer axis (docs/method.md section 4: r_x >= r_y).
     pub fn long_first(mut self) -> Self {
         if self.rx < self.ry {
             std::mem::swap(&mut self.n, &mut self.m);

@@ -1,7 +1,7 @@
 //! Where the roof bends inside and along a footprint: the dividing segments of the roof shape cut
-//! to the footprint (METHOD.md section 5). Each crossing of a dividing segment with a footprint
-//! edge becomes an extra point on that edge (the wall's top bends there), and the pieces inside
-//! become constraints of the roof triangulation.
+//! to the footprint (docs/method.md section 5). Each crossing of a dividing segment with a
+//! footprint edge becomes an extra point on that edge (the wall's top bends there), and the pieces
+//! inside become constraints of the roof triangulation.
 //!
 //! A point on an edge is stored as its parameter `sigma` from the edge's *canonical* start, the
 //! end with the smaller [`NodeKey`], and its coordinates are always computed from that end. Two

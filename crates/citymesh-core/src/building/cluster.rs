@@ -1,6 +1,6 @@
-//! Clusters: the buildings that must be generated together (METHOD.md section 7). Buildings that
-//! share an OSM node touch, so their hidden walls are removed together; a `building:part` inside
-//! a `building` outline is cut out of it. A cluster is never split between tiles.
+//! Clusters: the buildings that must be generated together (docs/method.md section 7). Buildings
+//! that share an OSM node touch, so their hidden walls are removed together; a `building:part`
+//! inside a `building` outline is cut out of it. A cluster is never split between tiles.
 
 use crate::osm::{BuildingRecord, RingNode};
 use std::collections::HashMap;

@@ -1,4 +1,5 @@
-//! Every default citymesh assumes when OSM tags are silent, in one place (METHOD.md section 6).
+//! Every default citymesh assumes when OSM tags are silent, in one place
+//! (docs/method.md section 6).
 //!
 //! | value | default |
 //! |---|---|
@@ -23,11 +24,12 @@ pub const MIN_WALL_HEIGHT: f64 = 0.5;
 /// Roof pitch in degrees when nothing says how high a pitched roof is.
 pub const DEFAULT_PITCH_DEGREES: f64 = 30.0;
 
-/// The half-hipped parameter HE: the share of the end walls that is hipped (METHOD.md section 6).
+/// The half-hipped parameter HE: the share of the end walls that is hipped
+/// (docs/method.md section 6).
 pub const HALF_HIPPED_HE: f64 = 0.7;
-/// The gambrel parameter GP: where the slope breaks, from the ridge (METHOD.md section 6).
+/// The gambrel parameter GP: where the slope breaks, from the ridge (docs/method.md section 6).
 pub const GAMBREL_GP: f64 = 0.7;
-/// The mansard parameter MP (METHOD.md section 6).
+/// The mansard parameter MP (docs/method.md section 6).
 pub const MANSARD_MP: f64 = 0.7;
 
 /// The largest height citymesh believes (the tallest building is 828 m).

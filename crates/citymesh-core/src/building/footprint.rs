@@ -3,7 +3,7 @@
 //! crosses itself.
 //!
 //! Every point keeps a [`NodeKey`], so two buildings that share OSM nodes can find the walls they
-//! share (METHOD.md section 7).
+//! share (docs/method.md section 7).
 
 /// Points closer than this (metres) are one point.
 pub const MERGE_DISTANCE: f64 = 1e-3;

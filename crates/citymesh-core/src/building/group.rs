@@ -1,8 +1,8 @@
-//! Meshing a group of volumes that touch (METHOD.md section 7): buildings that share OSM nodes,
-//! and an outline with its parts. Walls hidden between two volumes along a shared edge are left
-//! out up to the lower of the two, so the group's surface has no inner faces and stays closed:
-//! along a shared edge, each volume only shows the strip below the other's floor and the part of
-//! its wall above the other's roof.
+//! Meshing a group of volumes that touch (docs/method.md section 7): buildings that share OSM
+//! nodes, and an outline with its parts. Walls hidden between two volumes along a shared edge are
+//! left out up to the lower of the two, so the group's surface has no inner faces and stays
+//! closed: along a shared edge, each volume only shows the strip below the other's floor and the
+//! part of its wall above the other's roof.
 //!
 //! To keep every edge shared by exactly two triangles, both volumes put the same points on a
 //! shared edge (the union of the points where either roof bends there, plus where the two roofs

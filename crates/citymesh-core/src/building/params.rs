@@ -1,6 +1,6 @@
 //! From parsed tags to the numbers the generator needs: roof shape, heights and colours, with the
-//! fallbacks of METHOD.md section 6 (all defaults live in [`super::defaults`]). Each fallback taken
-//! is recorded, so scene statistics can say how much came from tags.
+//! fallbacks of docs/method.md section 6 (all defaults live in [`super::defaults`]). Each fallback
+//! taken is recorded, so scene statistics can say how much came from tags.
 
 use super::defaults::{
     DEFAULT_FLAT_ROOF_COLOUR, DEFAULT_PITCH_DEGREES, DEFAULT_PITCHED_ROOF_COLOUR,

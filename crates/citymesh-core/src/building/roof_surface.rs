@@ -1,6 +1,7 @@
 //! The roof of one building as a height function over the plane: the virtual rectangle of the
 //! footprint (turned for `roof:orientation`, or along `roof:direction` for skillions), a roof
-//! model's descending level function, and the heights of eaves and top (METHOD.md sections 4-6).
+//! model's descending level function, and the heights of eaves and top
+//! (docs/method.md sections 4-6).
 
 use super::axes::RoofAxes;
 use super::roof::{Alt, RoofModel, RoofShape, model};
@@ -95,7 +96,7 @@ impl RoofSurface {
     }
 
     /// The dividing segments of the shape in metres: the edges between virtual faces, where the
-    /// roof bends (METHOD.md section 5).
+    /// roof bends (docs/method.md section 5).
     pub fn dividing_segments(&self) -> Vec<[[f64; 2]; 2]> {
         if self.is_planar() {
             return Vec::new();

@@ -1,6 +1,6 @@
 //! The local metric frame a scene is built in.
 //!
-//! METHOD.md section 3 ("true scale") asks for true metres instead of the paper's Web Mercator
+//! docs/method.md section 3 ("true scale") asks for true metres instead of the paper's Web Mercator
 //! metres. citymesh uses a local equirectangular frame on the WGS84 ellipsoid: east and north are
 //! scaled by the ellipsoid's prime-vertical and meridional radii at the origin,
 //!

@@ -50,7 +50,10 @@ impl OsmFormat {
             Some(b'{') => Some(Self::OverpassJson),
             Some(b'<') => Some(Self::Xml),
             // A PBF file starts with the 4-byte length of its first BlobHeader, then "OSMHeader".
-            _ if bytes.len() > 16 && bytes[4..20].windows(9).any(|w| w == b"OSMHeader") => {
+            _ if bytes
+                .get(4..bytes.len().min(20))
+                .is_some_and(|head| head.windows(9).any(|w| w == b"OSMHeader")) =>
+            {
                 Some(Self::Pbf)
             }
             _ => None,
@@ -69,5 +72,27 @@ pub fn read_raw(bytes: &[u8]) -> Result<RawOsm, OsmError> {
         OsmFormat::OverpassJson => overpass_json::read(bytes),
         OsmFormat::Xml => xml::read(bytes),
         OsmFormat::Pbf => pbf::read(bytes),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sniff_reads_short_inputs_without_panicking() {
+        // A PBF starts with a 4-byte length, then the BlobHeader naming "OSMHeader".
+        let mut pbf = vec![0, 0, 0, 14, 0x0a, 0x09];
+        pbf.extend_from_slice(b"OSMHeader");
+        for len in 0..pbf.len() {
+            assert_eq!(OsmFormat::sniff(&pbf[..len]), None, "{len} bytes");
+        }
+        assert_eq!(OsmFormat::sniff(&pbf), Some(OsmFormat::Pbf));
+        // 17 to 19 bytes used to be sliced past their end.
+        for len in 17..20 {
+            assert_eq!(OsmFormat::sniff(&vec![7u8; len]), None);
+        }
+        assert_eq!(OsmFormat::sniff(b"  {\"elements\":[]}"), Some(OsmFormat::OverpassJson));
+        assert_eq!(OsmFormat::sniff(b"<osm/>"), Some(OsmFormat::Xml));
     }
 }

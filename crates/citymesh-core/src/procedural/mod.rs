@@ -1,4 +1,4 @@
-//! Procedural cities (METHOD.md section 10): a seeded, deterministic generator that splits an
+//! Procedural cities (docs/method.md section 10): a seeded, deterministic generator that splits an
 //! area into about 2^n blocks by recursive subdivision, with streets between them, fills each
 //! block with a layout picked by weight (detached houses, row houses, perimeter blocks, towers
 //! with parts, industrial halls) and roofs picked by weight, and emits the same building records

@@ -1,4 +1,4 @@
-//! The parameters of a procedural city (METHOD.md section 10), with their defaults and checks.
+//! The parameters of a procedural city (docs/method.md section 10), with their defaults and checks.
 
 use crate::building::roof::RoofShape;
 

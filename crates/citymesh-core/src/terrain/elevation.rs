@@ -1,4 +1,4 @@
-//! The elevation of any point: cell corners and Equation 1 (METHOD.md sections 1 and 2).
+//! The elevation of any point: cell corners and Equation 1 (docs/method.md sections 1 and 2).
 //!
 //! Coordinates here are in sample units: `u = lon * p`, `v = lat * p` with `p` samples per degree,
 //! so the cell of sample `(i, j)` spans `[i - 0.5, i + 0.5] x [j - 0.5, j + 0.5]`.
@@ -6,7 +6,7 @@
 use super::model::{ElevationModel, Sample};
 
 /// A cell corner is the average of the valid cells among the (up to) four around it
-/// (METHOD.md section 1). The order of summation is fixed so every caller gets the same bits.
+/// (docs/method.md section 1). The order of summation is fixed so every caller gets the same bits.
 #[inline]
 pub fn corner_height(cells: [Option<f64>; 4]) -> Option<f64> {
     let mut sum = 0.0;
@@ -64,7 +64,7 @@ impl ElevationModel {
     }
 
     /// The height to place things at: Equation 1 over samples whose voids are filled with the
-    /// average of the nearest valid samples around them (METHOD.md section 2, decision). Never
+    /// average of the nearest valid samples around them (docs/method.md section 2, decision). Never
     /// fails: with nothing valid nearby it answers 0 m.
     pub fn ground_height(&self, lon: f64, lat: f64) -> f64 {
         let p = f64::from(self.per_degree());

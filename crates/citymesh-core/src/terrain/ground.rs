@@ -1,4 +1,4 @@
-//! The ground mesh of a bounding box (METHOD.md section 1).
+//! The ground mesh of a bounding box (docs/method.md section 1).
 //!
 //! Every valid sample is the centre of a cell; the cell's corners average the valid cells around
 //! them; each cell becomes four triangles (corner, corner, centre). Void cells stay empty. Cells

@@ -1,4 +1,4 @@
-//! The lowest and highest ground along a closed ring (Elev_min and Elev_max of METHOD.md
+//! The lowest and highest ground along a closed ring (Elev_min and Elev_max of docs/method.md
 //! section 3). The ground is linear on each mesh triangle, so along a straight edge its extremes
 //! lie at the edge's ends or where it crosses a mesh line: a cell border (`u` or `v` at a half
 //! step) or a cell diagonal (`u - v` or `u + v` whole, in sample units). Checking exactly those

@@ -1,5 +1,5 @@
 //! Roof shapes: the paper's eight, each as descending level functions (DLF) over the virtual
-//! rectangle and the convex virtual faces on which the DLF is affine (METHOD.md section 6,
+//! rectangle and the convex virtual faces on which the DLF is affine (docs/method.md section 6,
 //! paper Appendix A).
 //!
 //! Coordinates here are the alternative coordinates of the virtual rectangle, already turned for

@@ -1,65 +1,28 @@
-//! Where the buildings of an area come from: the `--osm` files held in memory, or data tiles
-//! (SQLite, filled from Overpass or by `citymesh import`). Data tiles are parsed once and kept in
-//! memory; concurrent requests for the same missing data tile make one upstream request; stale
-//! tiles are served while a refresh runs; `--offline` never calls upstream.
+//! OSM data tiles: buildings fetched and stored per Web Mercator tile of one fixed zoom
+//! ([`data_tile`]), kept in SQLite ([`store`]) and filled from Overpass or by `citymesh import`
+//! ([`import`]). Data tiles are parsed once and kept in memory; concurrent requests for the same
+//! missing data tile make one upstream request; stale tiles are served while a refresh runs, and
+//! a refresh that changes data announces the area; `--offline` never calls upstream.
 
-use super::data_tile::{affected_area, data_tiles_for};
-use super::files::OsmData;
-use super::store::{DataSource, OsmTileStore, now_secs};
-use crate::error::AppError;
+pub mod data_tile;
+pub mod import;
+mod store;
+
+pub use store::{DataOrigin, OsmTileStore, StoredDataTile, content_hash};
+
+use super::{AreaBuildings, BuildingSource, CHANGE_CAPACITY, DataChanged, SourceError};
 use crate::metrics::{Metrics, UpstreamLabels};
-use crate::tile_cache::TileCache;
 use crate::upstream::{OverpassClient, OverpassError};
 use citymesh_core::building::set::BuildingSet;
 use citymesh_core::geo::{GeoBbox, TileCoord};
 use citymesh_core::osm::{BuildingRecord, read_buildings};
+use data_tile::{affected_area, data_tiles_for};
+use futures_util::future::BoxFuture;
 use std::collections::HashSet;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
-
-/// The buildings of an area and what they came from.
-pub struct AreaBuildings {
-    pub set: Arc<BuildingSet>,
-    /// `files`, `stored`, or `missing=14/x/y,...` when offline data tiles had no data.
-    pub origin: String,
-}
-
-pub enum OsmSource {
-    /// `--osm` files, all in memory.
-    Files(OsmData),
-    /// Data tiles.
-    Tiles(Arc<DataTileSource>),
-}
-
-impl OsmSource {
-    /// The buildings an area needs.
-    pub async fn area(&self, bbox: &GeoBbox) -> Result<AreaBuildings, AppError> {
-        match self {
-            OsmSource::Files(data) => Ok(AreaBuildings {
-                set: data.set.clone(),
-                origin: "files".to_owned(),
-            }),
-            OsmSource::Tiles(tiles) => tiles.area(bbox).await,
-        }
-    }
-
-    /// Part of the generated tiles' cache key: changes when `--osm` files change. Data tiles
-    /// invalidate the tiles they affect explicitly instead.
-    pub fn fingerprint(&self) -> &str {
-        match self {
-            OsmSource::Files(data) => &data.fingerprint,
-            OsmSource::Tiles(_) => "tiles",
-        }
-    }
-
-    /// Buildings held in memory (files) or data tiles stored (tiles), for `/health`.
-    pub fn summary(&self) -> usize {
-        match self {
-            OsmSource::Files(data) => data.set.records().len(),
-            OsmSource::Tiles(t) => t.parsed.entry_count() as usize,
-        }
-    }
-}
+use store::now_secs;
+use tokio::sync::broadcast;
 
 /// One parsed data tile.
 struct ParsedDataTile {
@@ -79,7 +42,7 @@ pub struct DataTileSource {
     sets: moka::future::Cache<Vec<TileCoord>, Arc<BuildingSet>>,
     refreshing: Arc<Mutex<HashSet<TileCoord>>>,
     metrics: Arc<Metrics>,
-    tiles: Arc<TileCache>,
+    changes: broadcast::Sender<DataChanged>,
 }
 
 fn upstream_result(e: Option<&OverpassError>) -> UpstreamLabels {
@@ -94,7 +57,6 @@ impl DataTileSource {
         upstream: Option<Arc<OverpassClient>>,
         ttl_secs: i64,
         metrics: Arc<Metrics>,
-        tiles: Arc<TileCache>,
     ) -> Arc<Self> {
         Arc::new(Self {
             store,
@@ -109,11 +71,11 @@ impl DataTileSource {
                 .build(),
             refreshing: Arc::new(Mutex::new(HashSet::new())),
             metrics,
-            tiles,
+            changes: broadcast::channel(CHANGE_CAPACITY).0,
         })
     }
 
-    async fn area(&self, bbox: &GeoBbox) -> Result<AreaBuildings, AppError> {
+    async fn area(&self, bbox: &GeoBbox) -> Result<AreaBuildings, SourceError> {
         let keys = data_tiles_for(bbox);
         let parsed =
             futures_util::future::try_join_all(keys.iter().map(|t| self.data_tile(*t))).await?;
@@ -138,10 +100,10 @@ impl DataTileSource {
                     Arc::new(BuildingSet::new(records))
                 })
                 .await
-                .map_err(AppError::from)
+                .map_err(SourceError::from)
             })
             .await
-            .map_err(|e: Arc<AppError>| (*e).clone())?;
+            .map_err(|e: Arc<SourceError>| (*e).clone())?;
         let origin = if missing.is_empty() {
             "stored".to_owned()
         } else {
@@ -153,7 +115,7 @@ impl DataTileSource {
         Ok(AreaBuildings { set, origin })
     }
 
-    async fn data_tile(&self, t: TileCoord) -> Result<Arc<ParsedDataTile>, AppError> {
+    async fn data_tile(&self, t: TileCoord) -> Result<Arc<ParsedDataTile>, SourceError> {
         let loaded = AtomicBool::new(false);
         let result = self
             .parsed
@@ -163,7 +125,7 @@ impl DataTileSource {
                 if let Some(stored) = self.store.get(&t).await? {
                     self.metrics.cache("osm_sqlite", true);
                     let fetched_at =
-                        (stored.source == DataSource::Overpass).then_some(stored.fetched_at);
+                        (stored.origin == DataOrigin::Overpass).then_some(stored.fetched_at);
                     return parse(stored.body, fetched_at).await;
                 }
                 self.metrics.cache("osm_sqlite", false);
@@ -180,11 +142,11 @@ impl DataTileSource {
                     .get_or_create(&upstream_result(fetched.as_ref().err()))
                     .inc();
                 let body = fetched?;
-                self.store.put(&t, &body, DataSource::Overpass).await?;
+                self.store.put(&t, &body, DataOrigin::Overpass).await?;
                 parse(body.into(), Some(now_secs())).await
             })
             .await
-            .map_err(|e: Arc<AppError>| (*e).clone());
+            .map_err(|e: Arc<SourceError>| (*e).clone());
         if !loaded.load(Ordering::Relaxed) {
             self.metrics.cache("osm_memory", true);
         }
@@ -210,8 +172,11 @@ impl DataTileSource {
         let Some(upstream) = self.upstream.clone() else {
             return;
         };
-        let (store, metrics, tiles) =
-            (self.store.clone(), self.metrics.clone(), self.tiles.clone());
+        let (store, metrics, changes) = (
+            self.store.clone(),
+            self.metrics.clone(),
+            self.changes.clone(),
+        );
         let (parsed, sets) = (self.parsed.clone(), self.sets.clone());
         // The mark is cleared when the task ends, whatever happens.
         let done = RefreshDone(self.refreshing.clone(), t);
@@ -222,7 +187,7 @@ impl DataTileSource {
                 .get_or_create(&upstream_result(fetched.as_ref().err()))
                 .inc();
             match fetched {
-                Ok(body) => match store.put(&t, &body, DataSource::Overpass).await {
+                Ok(body) => match store.put(&t, &body, DataOrigin::Overpass).await {
                     Ok(changed) if !changed => {
                         // Read back with its new fetch time, so it is not stale any more.
                         parsed.invalidate(&t).await;
@@ -231,12 +196,11 @@ impl DataTileSource {
                     Ok(_) => {
                         parsed.invalidate(&t).await;
                         let _ = sets.invalidate_entries_if(move |k, _| k.contains(&t));
-                        match tiles.invalidate_area(&affected_area(&t)).await {
-                            Ok(n) => {
-                                tracing::info!(tile = ?t, removed = n, "OSM data changed; tiles invalidated")
-                            }
-                            Err(e) => tracing::error!("cannot invalidate tiles: {e}"),
-                        }
+                        tracing::info!(tile = ?t, "OSM data changed");
+                        // No subscriber (yet) is not an error.
+                        let _ = changes.send(DataChanged {
+                            area: affected_area(&t),
+                        });
                     }
                     Err(e) => tracing::error!("cannot store refreshed OSM data: {e}"),
                 },
@@ -261,7 +225,7 @@ impl Drop for RefreshDone {
 async fn parse(
     body: bytes::Bytes,
     fetched_at: Option<i64>,
-) -> Result<Arc<ParsedDataTile>, AppError> {
+) -> Result<Arc<ParsedDataTile>, SourceError> {
     tokio::task::spawn_blocking(move || {
         read_buildings(&body)
             .map(|b| {
@@ -271,7 +235,32 @@ async fn parse(
                     fetched_at,
                 })
             })
-            .map_err(|e| AppError::internal(format!("stored OSM data unreadable: {e}")))
+            .map_err(|e| SourceError::Unreadable(e.to_string()))
     })
     .await?
+}
+
+impl BuildingSource for DataTileSource {
+    fn buildings<'a>(
+        &'a self,
+        bbox: &'a GeoBbox,
+    ) -> BoxFuture<'a, Result<AreaBuildings, SourceError>> {
+        Box::pin(self.area(bbox))
+    }
+
+    fn subscribe(&self) -> broadcast::Receiver<DataChanged> {
+        self.changes.subscribe()
+    }
+
+    fn fingerprint(&self) -> &str {
+        "tiles"
+    }
+
+    fn summary(&self) -> usize {
+        self.parsed.entry_count() as usize
+    }
+
+    fn extent(&self) -> Option<GeoBbox> {
+        None
+    }
 }

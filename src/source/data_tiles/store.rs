@@ -7,16 +7,16 @@ use sqlx::{Row, SqlitePool};
 
 /// Where a stored data tile came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum DataSource {
+pub enum DataOrigin {
     Overpass,
     Import,
 }
 
-impl DataSource {
+impl DataOrigin {
     fn as_str(self) -> &'static str {
         match self {
-            DataSource::Overpass => "overpass",
-            DataSource::Import => "import",
+            DataOrigin::Overpass => "overpass",
+            DataOrigin::Import => "import",
         }
     }
 }
@@ -26,7 +26,7 @@ impl DataSource {
 pub struct StoredDataTile {
     pub body: Bytes,
     pub hash: String,
-    pub source: DataSource,
+    pub origin: DataOrigin,
     /// Unix seconds.
     pub fetched_at: i64,
 }
@@ -65,10 +65,10 @@ impl OsmTileStore {
         Ok(row.map(|r| StoredDataTile {
             body: Bytes::from(r.get::<Vec<u8>, _>(0)),
             hash: r.get(1),
-            source: if r.get::<String, _>(2) == "import" {
-                DataSource::Import
+            origin: if r.get::<String, _>(2) == "import" {
+                DataOrigin::Import
             } else {
-                DataSource::Overpass
+                DataOrigin::Overpass
             },
             fetched_at: r.get(3),
         }))
@@ -79,7 +79,7 @@ impl OsmTileStore {
         &self,
         t: &TileCoord,
         body: &[u8],
-        source: DataSource,
+        origin: DataOrigin,
     ) -> Result<bool, sqlx::Error> {
         let hash = content_hash(body);
         let previous: Option<String> =
@@ -98,7 +98,7 @@ impl OsmTileStore {
         .bind(i64::from(t.y))
         .bind(body)
         .bind(&hash)
-        .bind(source.as_str())
+        .bind(origin.as_str())
         .bind(now_secs())
         .execute(&self.pool)
         .await?;

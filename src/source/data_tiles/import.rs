@@ -1,29 +1,29 @@
-//! `citymesh import FILE...`: OSM files into the data-tile store, so the server can run fully
-//! offline. Each building is stored with every data tile its outline overlaps, in the same
-//! Overpass JSON layout an upstream answer has; the generated tiles over each changed data tile
-//! are dropped from the tile cache. Run it while the server is stopped, or restart the server
-//! after it: a running server keeps the data it already parsed in memory.
+//! OSM files into the data-tile store, so the server can run fully offline. Each building is
+//! stored with every data tile its outline overlaps, in the same Overpass JSON layout an upstream
+//! answer has; the report lists the areas whose data changed, for the caller to drop what was
+//! generated from them (`crate::import`).
 
 use super::data_tile::{DATA_ZOOM, affected_area};
-use super::files::read_osm_file;
-use super::store::{DataSource, OsmTileStore};
-use crate::db::{self, TileStore};
-use crate::tile_cache::tile_ranges;
+use super::store::{DataOrigin, OsmTileStore};
+use crate::source::read_osm_file;
 use anyhow::Context;
 use citymesh_core::building::cluster::record_bounds;
-use citymesh_core::geo::{MAX_ZOOM, TileCoord};
+use citymesh_core::geo::{GeoBbox, TileCoord};
 use citymesh_core::osm::{BuildingRecord, read_buildings, write_overpass_json};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::collections::{BTreeMap, HashSet};
 use std::path::PathBuf;
 
 /// What an import did.
-#[derive(Debug, Default, PartialEq, Eq)]
+#[derive(Debug, Default, PartialEq)]
 pub struct ImportReport {
     pub buildings: usize,
     pub skipped: usize,
     pub data_tiles: usize,
     pub changed_data_tiles: usize,
+    /// The areas whose served content may have used the changed data tiles.
+    pub changed_areas: Vec<GeoBbox>,
+    /// Generated tiles dropped from the cache (filled in by the caller that drops them).
     pub tiles_invalidated: u64,
 }
 
@@ -40,17 +40,13 @@ fn bar(len: u64, what: &str, quiet: bool) -> ProgressBar {
     bar
 }
 
-/// Imports the files into the database at `cache_db`. `quiet` hides the progress bars.
-pub async fn import(
+/// Imports the files into `store`. `quiet` hides the progress bars.
+pub async fn import_files(
     files: &[PathBuf],
-    cache_db: &str,
+    store: &OsmTileStore,
     quiet: bool,
 ) -> anyhow::Result<ImportReport> {
     anyhow::ensure!(!files.is_empty(), "name at least one OSM file to import");
-    let pool = db::open(cache_db)
-        .await
-        .with_context(|| format!("opening the cache database {cache_db}"))?;
-    let (store, tiles) = (OsmTileStore::new(pool.clone()), TileStore::new(pool));
     let mut report = ImportReport::default();
     let mut records: Vec<BuildingRecord> = Vec::new();
     let mut seen = HashSet::new();
@@ -102,11 +98,9 @@ pub async fn import(
     for (t, members) in &by_tile {
         let refs: Vec<&BuildingRecord> = members.iter().map(|&i| &records[i]).collect();
         let body = write_overpass_json(&refs);
-        if store.put(t, &body, DataSource::Import).await? {
+        if store.put(t, &body, DataOrigin::Import).await? {
             report.changed_data_tiles += 1;
-            report.tiles_invalidated += tiles
-                .delete_ranges(&tile_ranges(&affected_area(t), (0, MAX_ZOOM)))
-                .await?;
+            report.changed_areas.push(affected_area(t));
         }
         writing.inc(1);
     }

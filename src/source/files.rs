@@ -1,12 +1,16 @@
-//! Reading OSM files from disk into the building set the server serves.
+//! The `--osm` files (or the procedural demo city), read once at start-up and held in memory.
 
+use super::{AreaBuildings, BuildingSource, DataChanged, SourceError};
 use citymesh_core::building::set::BuildingSet;
+use citymesh_core::geo::GeoBbox;
+use futures_util::future::BoxFuture;
 use citymesh_core::osm::{BuildingRecord, OsmError, read_buildings};
 use std::collections::HashSet;
 use std::hash::{DefaultHasher, Hash, Hasher};
 use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+use tokio::sync::broadcast;
 
 /// Why an OSM file could not be used. Start-up stops with this message.
 #[derive(Debug, thiserror::Error)]
@@ -20,14 +24,58 @@ pub enum OsmFileError {
     Format { path: String, source: OsmError },
 }
 
-/// The buildings of all `--osm` files.
-#[derive(Debug, Default)]
-pub struct OsmData {
+/// Buildings held in memory: the `--osm` files, or the demo city.
+#[derive(Debug)]
+pub struct FileSource {
     pub set: Arc<BuildingSet>,
     /// Buildings that could not be assembled from the files (missing nodes, unclosed rings...).
     pub skipped_at_load: usize,
     /// Changes whenever the files change, so cached tiles built from old data are not reused.
     pub fingerprint: String,
+    /// Files never change while the server runs: nothing is ever sent.
+    changes: broadcast::Sender<DataChanged>,
+}
+
+impl FileSource {
+    /// Buildings given up front (the demo city), under a fixed fingerprint.
+    pub fn new(set: BuildingSet, fingerprint: &str) -> Self {
+        Self {
+            set: Arc::new(set),
+            skipped_at_load: 0,
+            fingerprint: fingerprint.to_owned(),
+            changes: broadcast::channel(1).0,
+        }
+    }
+}
+
+impl BuildingSource for FileSource {
+    fn buildings<'a>(
+        &'a self,
+        _bbox: &'a GeoBbox,
+    ) -> BoxFuture<'a, Result<AreaBuildings, SourceError>> {
+        Box::pin(async move {
+            Ok(AreaBuildings {
+                set: self.set.clone(),
+                origin: "files".to_owned(),
+            })
+        })
+    }
+
+    fn subscribe(&self) -> broadcast::Receiver<DataChanged> {
+        self.changes.subscribe()
+    }
+
+    fn fingerprint(&self) -> &str {
+        &self.fingerprint
+    }
+
+    fn summary(&self) -> usize {
+        self.set.records().len()
+    }
+
+    fn extent(&self) -> Option<GeoBbox> {
+        self.set.extent()
+    }
 }
 
 /// Largest decompressed OSM file accepted (4 GiB): guards against gzip bombs.
@@ -56,7 +104,7 @@ pub fn read_osm_file(path: &Path) -> Result<Vec<u8>, OsmFileError> {
 }
 
 /// Reads every file; a building found in several files is kept once. Blocking.
-pub fn load_osm_files(paths: &[PathBuf]) -> Result<OsmData, OsmFileError> {
+pub fn load_osm_files(paths: &[PathBuf]) -> Result<FileSource, OsmFileError> {
     let mut records: Vec<BuildingRecord> = Vec::new();
     let mut seen = HashSet::new();
     let mut skipped = 0;
@@ -85,9 +133,10 @@ pub fn load_osm_files(paths: &[PathBuf]) -> Result<OsmData, OsmFileError> {
             }
         }
     }
-    Ok(OsmData {
+    Ok(FileSource {
         set: Arc::new(BuildingSet::new(records)),
         skipped_at_load: skipped,
         fingerprint: format!("{:016x}", h.finish()),
+        changes: broadcast::channel(1).0,
     })
 }

@@ -15,33 +15,19 @@ pub const DATA_ZOOM: u8 = 14;
 /// buildings reaching over a tile edge are complete.
 pub const MARGIN_DEGREES: f64 = 0.002;
 
-/// The data tiles an area needs, with the margin.
+/// The data tiles an area needs, with the margin, column by column from the west.
 pub fn data_tiles_for(bbox: &GeoBbox) -> Vec<TileCoord> {
-    let lo_lat = (bbox.min_lat() - MARGIN_DEGREES).max(-85.0);
-    let hi_lat = (bbox.max_lat() + MARGIN_DEGREES).min(85.0);
-    let lo_lon = (bbox.min_lon() - MARGIN_DEGREES).max(-180.0);
-    let hi_lon = (bbox.max_lon() + MARGIN_DEGREES).min(179.999_999);
-    let nw = TileCoord::containing(DATA_ZOOM, lo_lon, hi_lat);
-    let se = TileCoord::containing(DATA_ZOOM, hi_lon, lo_lat);
-    let mut out = Vec::new();
-    for x in nw.x..=se.x {
-        for y in nw.y..=se.y {
-            out.push(TileCoord { z: DATA_ZOOM, x, y });
-        }
-    }
-    out
+    let mut tiles: Vec<TileCoord> =
+        TileCoord::covering(&bbox.grown_by_degrees(MARGIN_DEGREES), DATA_ZOOM)
+            .tiles()
+            .collect();
+    tiles.sort_unstable();
+    tiles
 }
 
 /// The area whose served tiles may use a data tile: its bounds grown by the margin.
 pub fn affected_area(data_tile: &TileCoord) -> GeoBbox {
-    let b = data_tile.bounds();
-    GeoBbox::new(
-        (b.min_lon() - MARGIN_DEGREES).max(-180.0),
-        (b.min_lat() - MARGIN_DEGREES).max(-85.0),
-        (b.max_lon() + MARGIN_DEGREES).min(180.0),
-        (b.max_lat() + MARGIN_DEGREES).min(85.0),
-    )
-    .unwrap_or(b)
+    data_tile.bounds().grown_by_degrees(MARGIN_DEGREES)
 }
 
 #[cfg(test)]

@@ -1,0 +1,158 @@
+//! Typed cache keys: what a cached tile is (its scheme and coordinate), how it is encoded, and
+//! which roof shapes went into it. Everything else its bytes depend on (generator version, DEM
+//! and `--osm` files) is the cache's data version, fixed for a running server.
+
+use citymesh_core::geo::{GeoBbox, ImplicitTile, TileCoord};
+use citymesh_core::scene::SceneArea;
+use std::hash::{Hash, Hasher};
+
+/// A box used as a key: equal when its four numbers are bit for bit equal.
+#[derive(Debug, Clone, Copy)]
+pub struct Region(pub GeoBbox);
+
+impl Region {
+    fn bits(&self) -> [u64; 4] {
+        let b = &self.0;
+        [b.min_lon(), b.min_lat(), b.max_lon(), b.max_lat()].map(f64::to_bits)
+    }
+}
+
+impl PartialEq for Region {
+    fn eq(&self, other: &Self) -> bool {
+        self.bits() == other.bits()
+    }
+}
+
+impl Eq for Region {}
+
+impl Hash for Region {
+    fn hash<H: Hasher>(&self, state: &mut H) {
+        self.bits().hash(state);
+    }
+}
+
+/// Which tile, in which scheme.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum TileId {
+    /// A Web Mercator XYZ tile (`/tiles/{z}/{x}/{y}.glb`).
+    Xyz(TileCoord),
+    /// A content tile of the 3D Tiles implicit quadtree over `root`.
+    Implicit { root: Region, tile: ImplicitTile },
+    /// A box (`/scene`).
+    Bbox(Region),
+}
+
+impl TileId {
+    /// The scheme's name, as stored.
+    pub fn scheme(&self) -> &'static str {
+        match self {
+            TileId::Xyz(_) => "xyz",
+            TileId::Implicit { .. } => "implicit",
+            TileId::Bbox(_) => "bbox",
+        }
+    }
+
+    /// The area generated for this tile.
+    pub fn area(&self) -> SceneArea {
+        match *self {
+            TileId::Xyz(t) => SceneArea::Xyz(t),
+            TileId::Implicit { root, tile } => SceneArea::Implicit { root: root.0, tile },
+            TileId::Bbox(b) => SceneArea::Bbox(b.0),
+        }
+    }
+
+    /// The ground the tile covers: a data change over it makes it stale.
+    pub fn bounds(&self) -> GeoBbox {
+        match self {
+            TileId::Xyz(t) => t.bounds(),
+            TileId::Implicit { root, tile } => tile.bbox(&root.0).unwrap_or(root.0),
+            TileId::Bbox(b) => b.0,
+        }
+    }
+}
+
+/// How the bytes are encoded. Only the plain encoding exists so far (f32 attributes, u16/u32
+/// indices); compact encodings are further variants.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum Encoding {
+    #[default]
+    Plain,
+}
+
+impl Encoding {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Encoding::Plain => "plain",
+        }
+    }
+}
+
+/// Where roof shapes come from. Only OSM tags so far; roofs classified from imagery are a
+/// further variant (with the model and the predictions used).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum RoofSource {
+    /// `roof:shape` tags, else the defaults.
+    #[default]
+    OsmTags,
+}
+
+impl RoofSource {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            RoofSource::OsmTags => "osm",
+        }
+    }
+}
+
+/// A cached tile's key.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct TileKey {
+    pub tile: TileId,
+    pub encoding: Encoding,
+    pub roofs: RoofSource,
+}
+
+impl TileKey {
+    /// An XYZ tile, plain, roofs from tags.
+    pub fn xyz(t: TileCoord) -> Self {
+        Self::new(TileId::Xyz(t))
+    }
+
+    /// A 3D Tiles content tile, plain, roofs from tags.
+    pub fn implicit(root: GeoBbox, tile: ImplicitTile) -> Self {
+        Self::new(TileId::Implicit {
+            root: Region(root),
+            tile,
+        })
+    }
+
+    fn new(tile: TileId) -> Self {
+        Self {
+            tile,
+            encoding: Encoding::default(),
+            roofs: RoofSource::default(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn regions_compare_by_their_numbers() {
+        let a: GeoBbox = "8.39,49.04,8.41,49.06".parse().unwrap();
+        let b: GeoBbox = "8.390,49.040,8.410,49.060".parse().unwrap();
+        let c: GeoBbox = "8.39,49.04,8.41,49.0600001".parse().unwrap();
+        let tile = ImplicitTile {
+            level: 2,
+            x: 1,
+            y: 3,
+        };
+        assert_eq!(TileKey::implicit(a, tile), TileKey::implicit(b, tile));
+        assert_ne!(TileKey::implicit(a, tile), TileKey::implicit(c, tile));
+        let xyz = TileKey::xyz(TileCoord::new(16, 1, 2).unwrap());
+        assert_eq!(xyz.tile.scheme(), "xyz");
+        assert_ne!(xyz, TileKey::implicit(a, tile));
+    }
+}

@@ -1,0 +1,165 @@
+//! The two-level tile cache: memory, then SQLite, then the generator, run once however many
+//! requests ask for the same tile at once.
+
+use super::key::TileKey;
+use crate::db::TileStore;
+use crate::metrics::Metrics;
+use crate::generation_stats::GenerationStats;
+use bytes::Bytes;
+use citymesh_core::geo::GeoBbox;
+use std::future::Future;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU8, Ordering};
+
+/// A tile ready to send: its bytes and their strong ETag (quoted).
+#[derive(Clone, Debug)]
+pub struct CachedTile {
+    pub bytes: Bytes,
+    pub etag: Arc<str>,
+    /// Generation figures, present when this request generated the tile.
+    pub generated: Option<Arc<GenerationStats>>,
+}
+
+/// Where a tile was found.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CacheLevel {
+    Memory,
+    Sqlite,
+    Generated,
+}
+
+impl CacheLevel {
+    /// The `X-Citymesh-Cache` value.
+    pub fn name(self) -> &'static str {
+        match self {
+            CacheLevel::Memory => "hit",
+            CacheLevel::Sqlite => "sqlite",
+            CacheLevel::Generated => "miss",
+        }
+    }
+}
+
+/// The strong ETag of some bytes, quoted as HTTP writes it.
+pub fn etag_of(bytes: &[u8]) -> String {
+    format!("\"{:016x}\"", xxhash_rust::xxh3::xxh3_64(bytes))
+}
+
+pub struct TileCache {
+    memory: moka::future::Cache<TileKey, CachedTile>,
+    store: TileStore,
+    /// Everything the bytes depend on besides the key and the OSM data tiles (which invalidate
+    /// explicitly): generator version, DEM files, local OSM files.
+    data_version: String,
+    metrics: Arc<Metrics>,
+}
+
+impl TileCache {
+    pub fn new(
+        store: TileStore,
+        memory_bytes: u64,
+        data_version: String,
+        metrics: Arc<Metrics>,
+    ) -> Self {
+        let memory = moka::future::Cache::builder()
+            .max_capacity(memory_bytes)
+            .weigher(|_, t: &CachedTile| u32::try_from(t.bytes.len()).unwrap_or(u32::MAX))
+            .support_invalidation_closures()
+            .build();
+        Self {
+            memory,
+            store,
+            data_version,
+            metrics,
+        }
+    }
+
+    /// The tile from memory, else SQLite, else `generate` (run once however many ask at once).
+    /// Errors are never cached.
+    pub async fn get_or_generate<F, Fut, E>(
+        &self,
+        key: TileKey,
+        generate: F,
+    ) -> Result<(CachedTile, CacheLevel), E>
+    where
+        F: FnOnce() -> Fut,
+        Fut: Future<Output = Result<(Bytes, GenerationStats), E>>,
+        E: From<sqlx::Error> + Clone + Send + Sync + 'static,
+    {
+        // 0: memory hit (the init below did not run), 1: SQLite, 2: generated.
+        let level = AtomicU8::new(0);
+        let result = self
+            .memory
+            .try_get_with(key, async {
+                if let Some(stored) = self.store.get(&key, &self.data_version).await? {
+                    self.metrics.cache("memory", false);
+                    self.metrics.cache("sqlite", true);
+                    level.store(1, Ordering::Relaxed);
+                    return Ok::<_, E>(CachedTile {
+                        bytes: stored.bytes,
+                        etag: Arc::from(stored.etag),
+                        generated: None,
+                    });
+                }
+                self.metrics.cache("memory", false);
+                self.metrics.cache("sqlite", false);
+                level.store(2, Ordering::Relaxed);
+                let (bytes, stats) = generate().await?;
+                let etag = etag_of(&bytes);
+                self.store
+                    .put(&key, &self.data_version, &bytes, &etag)
+                    .await?;
+                Ok(CachedTile {
+                    bytes,
+                    etag: Arc::from(etag),
+                    generated: Some(Arc::new(stats)),
+                })
+            })
+            .await;
+        let tile = result.map_err(|e: Arc<E>| (*e).clone())?;
+        let level = match level.load(Ordering::Relaxed) {
+            0 => {
+                self.metrics.cache("memory", true);
+                CacheLevel::Memory
+            }
+            1 => CacheLevel::Sqlite,
+            _ => CacheLevel::Generated,
+        };
+        // Only the request that generated the tile reports generation figures.
+        let tile = if level == CacheLevel::Generated {
+            tile
+        } else {
+            CachedTile {
+                generated: None,
+                ..tile
+            }
+        };
+        Ok((tile, level))
+    }
+
+    /// Drops every cached tile whose ground overlaps `area`, in memory and in SQLite; answers
+    /// how many stored tiles were deleted.
+    pub async fn invalidate_area(&self, area: &GeoBbox) -> Result<u64, sqlx::Error> {
+        let removed = self.store.delete_overlapping(area).await?;
+        let area = *area;
+        if let Err(e) = self
+            .memory
+            .invalidate_entries_if(move |key, _| overlaps(&key.tile.bounds(), &area))
+        {
+            tracing::error!("cannot invalidate cached tiles: {e}");
+        }
+        Ok(removed)
+    }
+
+    /// Drops everything held in memory (a subscriber that missed announcements).
+    pub fn invalidate_memory(&self) {
+        self.memory.invalidate_all();
+    }
+}
+
+/// Whether two boxes share any point (borders included).
+pub(super) fn overlaps(a: &GeoBbox, b: &GeoBbox) -> bool {
+    a.min_lon() <= b.max_lon()
+        && a.max_lon() >= b.min_lon()
+        && a.min_lat() <= b.max_lat()
+        && a.max_lat() >= b.min_lat()
+}

@@ -1,0 +1,37 @@
+//! The 3D Tiles answers that are not meshes: the tree's layout over a region (for the tileset)
+//! and its binary subtree. Content tiles go through [`super::generate`].
+
+use super::within_timeout;
+use crate::error::AppError;
+use crate::state::AppState;
+use citymesh_core::geo::GeoBbox;
+use citymesh_core::tiles3d::{ImplicitLayout, root_subtree};
+
+/// The tree over `root`, with its height range from the DEM and the tallest building.
+pub async fn tileset_layout(state: &AppState, root: GeoBbox) -> Result<ImplicitLayout, AppError> {
+    within_timeout(state, async {
+        let buildings = state.source.buildings(&root).await?;
+        let dem = state.dem.clone();
+        Ok(tokio::task::spawn_blocking(move || {
+            let model = dem.lookup(&root).model;
+            ImplicitLayout::measure(root, &model, &buildings.set)
+        })
+        .await?)
+    })
+    .await
+}
+
+/// The binary subtree at the root of the tree over `root` (the tree's only one): which tiles
+/// exist and which leaves hold content.
+pub async fn subtree(state: &AppState, root: GeoBbox) -> Result<Vec<u8>, AppError> {
+    within_timeout(state, async {
+        let buildings = state.source.buildings(&root).await?;
+        Ok(tokio::task::spawn_blocking(move || {
+            let leaf = ImplicitLayout::leaf_level_of(&root);
+            let content = buildings.set.implicit_tiles_with_content(&root, leaf);
+            root_subtree(leaf, &content)
+        })
+        .await?)
+    })
+    .await
+}

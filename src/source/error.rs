@@ -1,0 +1,32 @@
+//! The one error type of the building sources.
+
+use crate::upstream::OverpassError;
+
+/// Why a source could not give the buildings of an area.
+#[derive(Debug, Clone, thiserror::Error)]
+pub enum SourceError {
+    /// The upstream (Overpass) failed, timed out or is rate limiting.
+    #[error(transparent)]
+    Upstream(#[from] OverpassError),
+    /// The data-tile store (SQLite) failed.
+    #[error("OSM data store: {0}")]
+    Store(String),
+    /// Stored data could not be parsed.
+    #[error("stored OSM data unreadable: {0}")]
+    Unreadable(String),
+    /// A blocking task failed (a bug).
+    #[error("source task failed: {0}")]
+    Task(String),
+}
+
+impl From<sqlx::Error> for SourceError {
+    fn from(e: sqlx::Error) -> Self {
+        SourceError::Store(e.to_string())
+    }
+}
+
+impl From<tokio::task::JoinError> for SourceError {
+    fn from(e: tokio::task::JoinError) -> Self {
+        SourceError::Task(e.to_string())
+    }
+}

@@ -1,0 +1,66 @@
+//! Where buildings come from. Every source implements [`BuildingSource`]: it answers the
+//! buildings an area needs and announces the areas whose data changed, so one subscriber (the
+//! tile cache's invalidation, `crate::cache::invalidation`) drops what was built from old data.
+//! Sources know nothing of HTTP or of the caches of generated tiles; they fail with their own
+//! [`SourceError`], which only `crate::error` maps to a status.
+//!
+//! Two sources exist: the `--osm` files (or the procedural demo city) held in memory
+//! ([`FileSource`]), and OSM data tiles in SQLite filled from Overpass or by `citymesh import`
+//! ([`DataTileSource`]). A PostgreSQL-backed source would be a third implementation of the trait,
+//! chosen in `crate::server`; nothing in `crate::routes` or `crate::pipeline` would change.
+
+pub mod data_tiles;
+mod error;
+mod files;
+
+pub use data_tiles::DataTileSource;
+pub use error::SourceError;
+pub use files::{FileSource, OsmFileError, load_osm_files, read_osm_file};
+
+use citymesh_core::building::set::BuildingSet;
+use citymesh_core::geo::GeoBbox;
+use futures_util::future::BoxFuture;
+use std::sync::Arc;
+use tokio::sync::broadcast;
+
+/// The buildings of an area and where they came from.
+#[derive(Debug, Clone)]
+pub struct AreaBuildings {
+    pub set: Arc<BuildingSet>,
+    /// `files`, `stored`, `request` (given by the client), or
+    /// `missing=14/x/y,... (offline: no buildings there)`.
+    pub origin: String,
+}
+
+/// The data of an area changed: everything built from it is stale.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DataChanged {
+    /// The area whose served content may have used the changed data (margin included).
+    pub area: GeoBbox,
+}
+
+/// A source of buildings.
+pub trait BuildingSource: Send + Sync {
+    /// The buildings an area needs: at least every building group that touches `bbox`, whole.
+    fn buildings<'a>(
+        &'a self,
+        bbox: &'a GeoBbox,
+    ) -> BoxFuture<'a, Result<AreaBuildings, SourceError>>;
+
+    /// Announcements of changed areas, from now on.
+    fn subscribe(&self) -> broadcast::Receiver<DataChanged>;
+
+    /// Part of every generated tile's cache key: changes when the source's data changes in a way
+    /// it does not announce (files edited between runs).
+    fn fingerprint(&self) -> &str;
+
+    /// Buildings held (files) or data tiles parsed (data tiles), for `/health`.
+    fn summary(&self) -> usize;
+
+    /// The extent of all buildings when the source knows it up front (files), else `None`.
+    fn extent(&self) -> Option<GeoBbox>;
+}
+
+/// Capacity of a source's change announcements; a subscriber that falls further behind drops
+/// everything it cached (see `crate::cache::invalidation`).
+pub const CHANGE_CAPACITY: usize = 256;
