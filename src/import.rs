@@ -5,8 +5,8 @@
 
 use crate::cache::invalidation::drop_stored;
 use crate::db::{self, TileStore};
-use crate::source::data_tiles::import::{ImportReport, import_files};
 use crate::source::data_tiles::OsmTileStore;
+use crate::source::data_tiles::import::{ImportReport, import_files};
 use anyhow::Context;
 use std::path::PathBuf;
 

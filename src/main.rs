@@ -13,8 +13,7 @@ async fn main() -> anyhow::Result<()> {
             Ok(())
         }
         Command::Import(args) => {
-            let report =
-                citymesh::import::import(&args.files, &args.cache_db, args.quiet).await?;
+            let report = citymesh::import::import(&args.files, &args.cache_db, args.quiet).await?;
             println!(
                 "imported {} buildings ({} skipped) into {} data tiles ({} changed; {} generated tiles dropped) in {}",
                 report.buildings,

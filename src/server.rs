@@ -119,7 +119,7 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
     invalidation::subscribe(source.as_ref(), tiles.clone());
     let slots = args
         .max_generations
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(2, |n| n.get()))
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(2, std::num::NonZero::get))
         .max(1);
     Ok(AppState {
         dem: Arc::new(dem),

@@ -1,6 +1,7 @@
 //! Buildings served over HTTP from local OSM files: real buildings on real terrain in
 //! `/scene.glb` and `/tiles`, the figures in `/scene/stats` and the response headers, every
 //! real file's scene through the Khronos glTF Validator, and each building in exactly one tile.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
 mod common;
 

@@ -1,5 +1,6 @@
 //! The ground served over HTTP: real terrain, tiles and their SQLite cache, DEM files in every
 //! packaging and state, and the glTF Validator's verdict.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
 mod common;
 
@@ -26,7 +27,10 @@ async fn scene_has_the_real_terrain_and_passes_the_validator() {
     let vertices: usize = answer.header("x-citymesh-vertices").parse().unwrap();
     assert_eq!(positions.len(), vertices);
     assert_eq!(glb_triangle_count(&answer.body), triangles);
-    assert!(vertices < 3 * triangles, "{vertices} vertices, {triangles} triangles");
+    assert!(
+        vertices < 3 * triangles,
+        "{vertices} vertices, {triangles} triangles"
+    );
     // The raw samples of N49E008 in and around this box span these heights; the mesh, made of
     // samples and averages of them, must stay inside.
     let tile = std::fs::read(dem_dir().join("N49E008.hgt")).unwrap();

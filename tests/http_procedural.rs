@@ -1,6 +1,7 @@
 //! Procedural and user-defined scenes over HTTP: determinism, layouts and roof shapes by weight,
 //! the GeoJSON round trip through `POST /scene.glb`, every invalid upload with its status and
 //! message, and the demo city a server with no data serves.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
 mod common;
 
@@ -346,7 +347,7 @@ async fn every_invalid_upload_gets_its_status_and_says_what_to_fix() {
                     [8.4002, 49.0],
                     [8.4, 49.00004],
                     [8.4, 49.0]
-                ]])
+                ]]);
             }),
             StatusCode::UNPROCESSABLE_ENTITY,
             "invalid_geojson",

@@ -3,6 +3,7 @@
 //! requests. Single flight under load, no upstream after a restart, every kind of upstream
 //! failure, import then offline, and adjacent tiles that hold each building once and share their
 //! ground edges.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
 mod common;
 

@@ -22,7 +22,10 @@ pub fn subscribe(source: &dyn BuildingSource, tiles: Arc<TileCache>) {
                 Err(RecvError::Lagged(missed)) => {
                     // Which areas changed is lost: nothing in memory can be trusted. Stored
                     // tiles over the missed areas may survive until their data changes again.
-                    tracing::warn!(missed, "missed data-change announcements; memory cache dropped");
+                    tracing::warn!(
+                        missed,
+                        "missed data-change announcements; memory cache dropped"
+                    );
                     tiles.invalidate_memory();
                 }
                 Err(RecvError::Closed) => break,

@@ -3,8 +3,8 @@
 
 use super::key::TileKey;
 use crate::db::TileStore;
-use crate::metrics::Metrics;
 use crate::generation_stats::GenerationStats;
+use crate::metrics::Metrics;
 use bytes::Bytes;
 use citymesh_core::geo::GeoBbox;
 use std::future::Future;

@@ -108,12 +108,7 @@ impl DemStore {
 
     fn tile(&self, key: TileKey) -> Option<Arc<HgtTile>> {
         let path = self.files.get(&key)?;
-        if self
-            .broken
-            .lock()
-            .map(|b| b.contains_key(&key))
-            .unwrap_or(false)
-        {
+        if self.broken.lock().is_ok_and(|b| b.contains_key(&key)) {
             return None;
         }
         let loaded = self

@@ -12,7 +12,10 @@ pub struct BboxQuery {
     /// The area as `minLon,minLat,maxLon,maxLat` in WGS84 degrees, e.g. `8.400,49.010,8.409,49.017`
     /// (the demo city). Latitudes within ±85.0511; the area may not exceed the server's limit (25 km²
     /// by default).
-    #[param(pattern = r"^\s*-?[0-9.eE+-]+\s*(,\s*-?[0-9.eE+-]+\s*){3}$", example = "8.400,49.010,8.409,49.017")]
+    #[param(
+        pattern = r"^\s*-?[0-9.eE+-]+\s*(,\s*-?[0-9.eE+-]+\s*){3}$",
+        example = "8.400,49.010,8.409,49.017"
+    )]
     pub bbox: Option<String>,
 }
 

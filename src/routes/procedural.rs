@@ -98,10 +98,18 @@ impl ProceduralQuery {
             p.complexity = c;
         }
         if let Some(l) = &self.layouts {
-            p.layouts = weights(l, LayoutType::ALL.map(|l| l.name()), "layouts")?;
+            p.layouts = weights(
+                l,
+                LayoutType::ALL.map(citymesh_core::procedural::LayoutType::name),
+                "layouts",
+            )?;
         }
         if let Some(r) = &self.roofs {
-            p.roofs = weights(r, RoofShape::ALL.map(|r| r.tag()), "roofs")?;
+            p.roofs = weights(
+                r,
+                RoofShape::ALL.map(citymesh_core::building::roof::RoofShape::tag),
+                "roofs",
+            )?;
         }
         p.lon = self.lon.unwrap_or(p.lon);
         p.lat = self.lat.unwrap_or(p.lat);

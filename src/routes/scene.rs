@@ -36,7 +36,10 @@ pub struct SceneQuery {
     /// The area as `minLon,minLat,maxLon,maxLat` in WGS84 degrees, e.g. `8.400,49.010,8.409,49.017`
     /// (the demo city). Latitudes within ±85.0511; the area may not exceed the server's limit (25 km²
     /// by default).
-    #[param(pattern = r"^\s*-?[0-9.eE+-]+\s*(,\s*-?[0-9.eE+-]+\s*){3}$", example = "8.400,49.010,8.409,49.017")]
+    #[param(
+        pattern = r"^\s*-?[0-9.eE+-]+\s*(,\s*-?[0-9.eE+-]+\s*){3}$",
+        example = "8.400,49.010,8.409,49.017"
+    )]
     pub bbox: Option<String>,
     /// `glb` (the default) or `json`. Without it, an `Accept` header that names
     /// `application/json` and not `model/gltf-binary` chooses `json`.
@@ -67,14 +70,10 @@ pub async fn scene(
     query: Result<Query<SceneQuery>, QueryRejection>,
 ) -> Result<Response, AppError> {
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
-    let format = query
-        .format
-        .unwrap_or_else(|| negotiate(&request_headers));
+    let format = query.format.unwrap_or_else(|| negotiate(&request_headers));
     let generated = generate_box(&state, query.bbox.as_deref()).await?;
     Ok(match format {
-        SceneFormat::Glb => {
-            generated_response(&request_headers, generated, SCENE_CACHE_CONTROL)
-        }
+        SceneFormat::Glb => generated_response(&request_headers, generated, SCENE_CACHE_CONTROL),
         SceneFormat::Json => Json(SceneStats::of(&generated)).into_response(),
     })
 }

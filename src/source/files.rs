@@ -3,8 +3,8 @@
 use super::{AreaBuildings, BuildingSource, DataChanged, SourceError};
 use citymesh_core::building::set::BuildingSet;
 use citymesh_core::geo::GeoBbox;
-use futures_util::future::BoxFuture;
 use citymesh_core::osm::{BuildingRecord, OsmError, read_buildings};
+use futures_util::future::BoxFuture;
 use std::collections::HashSet;
 use std::hash::{DefaultHasher, Hash, Hasher};
 use std::io::Read;

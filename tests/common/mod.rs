@@ -12,9 +12,10 @@ use tower::ServiceExt;
 
 /// The real data folder: `CITYMESH_DATA_DIR`, else `../shared/data` beside the project.
 pub fn data_dir() -> PathBuf {
-    let dir = std::env::var_os("CITYMESH_DATA_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data"));
+    let dir = std::env::var_os("CITYMESH_DATA_DIR").map_or_else(
+        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data"),
+        PathBuf::from,
+    );
     assert!(
         dir.join("dem").is_dir(),
         "real test data not found at {} (set CITYMESH_DATA_DIR to the folder holding dem/ and osm/)",

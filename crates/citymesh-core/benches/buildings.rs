@@ -2,6 +2,7 @@
 //! extent), from parsed OSM records to GLB bytes, and the OSM parsing before it.
 //! Reads `osm/karlsruhe-kirchfeld.osm.pbf` and `dem/N49E008.hgt` from `CITYMESH_DATA_DIR`
 //! (default `../shared/data`).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
 use citymesh_core::building::clusters;
 use citymesh_core::building::set::BuildingSet;
@@ -14,9 +15,10 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 fn read(name: &str) -> Vec<u8> {
-    let dir = std::env::var_os("CITYMESH_DATA_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"));
+    let dir = std::env::var_os("CITYMESH_DATA_DIR").map_or_else(
+        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"),
+        PathBuf::from,
+    );
     let path = dir.join(name);
     std::fs::read(&path)
         .unwrap_or_else(|e| panic!("{}: {e} (set CITYMESH_DATA_DIR)", path.display()))
@@ -55,7 +57,7 @@ fn kirchfeld(c: &mut Criterion) {
         b.iter(|| {
             let osm = read_buildings(black_box(&pbf)).unwrap();
             clusters(&osm.buildings).len()
-        })
+        });
     });
 }
 

@@ -1,5 +1,6 @@
 //! A 1 km x 1 km procedural city at complexity 6 (the demo city): generating its definitions, and
 //! from the definitions to GLB bytes (clusters, flat ground, buildings, GLB).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
 use citymesh_core::building::set::BuildingSet;
 use citymesh_core::procedural::{ProceduralParams, generate_city};
@@ -23,10 +24,10 @@ fn procedural(c: &mut Criterion) {
         glb.len()
     );
     c.bench_function("procedural_1km_c6_definitions", |b| {
-        b.iter(|| generate_city(black_box(&params)).unwrap())
+        b.iter(|| generate_city(black_box(&params)).unwrap());
     });
     c.bench_function("procedural_1km_c6_definitions_to_glb", |b| {
-        b.iter(|| to_glb(black_box(city.records.clone())))
+        b.iter(|| to_glb(black_box(city.records.clone())));
     });
 }
 

@@ -1,4 +1,5 @@
 //! Shared helpers for tests on the real data in `../shared/data`.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 #![allow(dead_code)]
 
 use citymesh_core::terrain::{ElevationModel, HgtTile, parse_hgt_name};
@@ -7,9 +8,10 @@ use std::sync::Arc;
 
 /// The real data folder: `CITYMESH_DATA_DIR`, else `../shared/data` beside the project.
 pub fn data_dir() -> PathBuf {
-    let dir = std::env::var_os("CITYMESH_DATA_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"));
+    let dir = std::env::var_os("CITYMESH_DATA_DIR").map_or_else(
+        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"),
+        PathBuf::from,
+    );
     assert!(
         dir.join("dem").is_dir(),
         "real test data not found at {} (set CITYMESH_DATA_DIR to the folder holding dem/ and osm/)",

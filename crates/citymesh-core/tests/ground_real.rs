@@ -1,4 +1,5 @@
 //! The ground grid on the real SRTM files of `../shared/data/dem`.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
 mod common;
 

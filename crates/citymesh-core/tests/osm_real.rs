@@ -1,4 +1,5 @@
 //! The OSM readers on the real files of `../shared/data/osm`.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
 mod common;
 
@@ -137,13 +138,13 @@ fn missing_nodes_and_members_are_skipped_and_the_rest_kept() {
     // Drop the first node of way 35538135 and the inner member way of relation 1776559.
     let way = elements
         .iter()
-        .find(|e| e["type"] == "way" && e["id"] == 35538135)
+        .find(|e| e["type"] == "way" && e["id"] == 35_538_135)
         .unwrap()
         .clone();
     let first_node = way["nodes"][0].as_i64().unwrap();
     elements.retain(|e| {
         let dropped_node = e["type"] == "node" && e["id"] == first_node;
-        let dropped_way = e["type"] == "way" && e["id"] == 132344585;
+        let dropped_way = e["type"] == "way" && e["id"] == 132_344_585;
         !(dropped_node || dropped_way)
     });
     let b = read_buildings(&serde_json::to_vec(&doc).unwrap()).unwrap();

@@ -231,7 +231,12 @@ impl Footprint {
 
     /// Area in m² (courtyards subtracted).
     pub fn area(&self) -> f64 {
-        self.outer.signed_area() + self.holes.iter().map(|h| h.signed_area()).sum::<f64>()
+        self.outer.signed_area()
+            + self
+                .holes
+                .iter()
+                .map(FootprintRing::signed_area)
+                .sum::<f64>()
     }
 }
 

@@ -325,7 +325,7 @@ fn mesh_volume(
             };
             match partner.get(&(vi, r, a.edge)).map(|p| &volumes[p.volume]) {
                 None => {
-                    push_wall_piece(mesh, end(&a, v.floor, ta), end(&b, v.floor, tb), wall_style)
+                    push_wall_piece(mesh, end(&a, v.floor, ta), end(&b, v.floor, tb), wall_style);
                 }
                 Some(o) => {
                     // Both walls stand between their floor and roof; the part both cover,

@@ -84,6 +84,16 @@ impl GeoBbox {
         })
     }
 
+    /// A box from values the caller knows to be valid and ordered (tile math).
+    pub(crate) fn from_ordered(min_lon: f64, min_lat: f64, max_lon: f64, max_lat: f64) -> Self {
+        Self {
+            min_lon,
+            min_lat,
+            max_lon,
+            max_lat,
+        }
+    }
+
     pub fn min_lon(&self) -> f64 {
         self.min_lon
     }

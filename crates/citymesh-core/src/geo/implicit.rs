@@ -79,7 +79,7 @@ mod tests {
         assert_eq!(morton(0, 1), 2);
         assert_eq!(morton(1, 1), 3);
         assert_eq!(morton(2, 0), 4);
-        assert_eq!(morton(3, 5), 0b100111);
+        assert_eq!(morton(3, 5), 0b10_0111);
     }
 
     #[test]

@@ -67,10 +67,9 @@ impl TileCoord {
         let lon = |x: f64| x / n * 360.0 - 180.0;
         let lat = |y: f64| (PI * (1.0 - 2.0 * y / n)).sinh().atan().to_degrees();
         let (x, y) = (f64::from(self.x), f64::from(self.y));
-        // The inputs are a checked tile, so the box is valid; clamp guards the last ulp at the poles.
+        // A checked tile has west < east and south < north; clamp guards the last ulp at the poles.
         let clamp = |l: f64| l.clamp(-MAX_MERCATOR_LAT, MAX_MERCATOR_LAT);
-        GeoBbox::new(lon(x), clamp(lat(y + 1.0)), lon(x + 1.0), clamp(lat(y)))
-            .expect("a checked tile coordinate always has a valid extent")
+        GeoBbox::from_ordered(lon(x), clamp(lat(y + 1.0)), lon(x + 1.0), clamp(lat(y)))
     }
 }
 

@@ -43,7 +43,8 @@ impl TileRange {
 
     /// The number of tiles.
     pub fn len(&self) -> u64 {
-        (u64::from(self.x1) - u64::from(self.x0) + 1) * (u64::from(self.y1) - u64::from(self.y0) + 1)
+        (u64::from(self.x1) - u64::from(self.x0) + 1)
+            * (u64::from(self.y1) - u64::from(self.y0) + 1)
     }
 
     /// Always false: a range holds at least one tile.
@@ -77,9 +78,24 @@ mod tests {
         assert_eq!((r.x0, r.x1, r.y0, r.y1), (8573, 8574, 5624, 5625));
         assert_eq!(r.len(), 4);
         let tiles: Vec<_> = r.tiles().map(|t| (t.x, t.y)).collect();
-        assert_eq!(tiles, [(8573, 5624), (8574, 5624), (8573, 5625), (8574, 5625)]);
-        assert!(r.contains(&TileCoord { z: 14, x: 8574, y: 5624 }));
-        assert!(!r.contains(&TileCoord { z: 15, x: 8574, y: 5624 }));
-        assert!(!r.contains(&TileCoord { z: 14, x: 8575, y: 5624 }));
+        assert_eq!(
+            tiles,
+            [(8573, 5624), (8574, 5624), (8573, 5625), (8574, 5625)]
+        );
+        assert!(r.contains(&TileCoord {
+            z: 14,
+            x: 8574,
+            y: 5624
+        }));
+        assert!(!r.contains(&TileCoord {
+            z: 15,
+            x: 8574,
+            y: 5624
+        }));
+        assert!(!r.contains(&TileCoord {
+            z: 14,
+            x: 8575,
+            y: 5624
+        }));
     }
 }

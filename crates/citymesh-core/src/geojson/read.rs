@@ -129,8 +129,7 @@ pub fn read_geojson(bytes: &[u8], limits: GeoJsonLimits) -> Result<GeoJsonScene,
 fn read_bbox(b: &Value) -> Result<GeoBbox, GeoJsonError> {
     let v: Option<Vec<f64>> = b
         .as_array()
-        .map(|a| a.iter().map(Value::as_f64).collect::<Option<Vec<f64>>>())
-        .unwrap_or(None);
+        .and_then(|a| a.iter().map(Value::as_f64).collect::<Option<Vec<f64>>>());
     match v.as_deref() {
         Some([w, s, e, n]) => {
             GeoBbox::new(*w, *s, *e, *n).map_err(|e| invalid(None, "bbox", format!("{e}")))
@@ -266,10 +265,9 @@ fn read_ring(i: usize, field: &str, r: &Value) -> Result<Ring, GeoJsonError> {
     for (k, p) in positions.iter().enumerate() {
         let c: Option<Vec<f64>> = p
             .as_array()
-            .map(|a| a.iter().map(Value::as_f64).collect::<Option<Vec<f64>>>())
-            .unwrap_or(None);
+            .and_then(|a| a.iter().map(Value::as_f64).collect::<Option<Vec<f64>>>());
         let (lon, lat) = match c.as_deref() {
-            Some([lon, lat]) | Some([lon, lat, _]) => (*lon, *lat),
+            Some([lon, lat] | [lon, lat, _]) => (*lon, *lat),
             _ => {
                 return Err(invalid(
                     at,

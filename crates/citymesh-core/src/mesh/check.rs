@@ -44,8 +44,7 @@ pub fn check_closed(mesh: &Mesh, range: std::ops::Range<usize>) -> ClosedReport 
     let origin = range
         .clone()
         .next()
-        .map(|t| mesh.positions[mesh.triangles[t][0] as usize])
-        .unwrap_or([0.0; 3]);
+        .map_or([0.0; 3], |t| mesh.positions[mesh.triangles[t][0] as usize]);
     for t in range {
         report.triangles += 1;
         let corners = mesh.corners(mesh.triangles[t]);

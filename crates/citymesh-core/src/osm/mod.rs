@@ -92,7 +92,10 @@ mod tests {
         for len in 17..20 {
             assert_eq!(OsmFormat::sniff(&vec![7u8; len]), None);
         }
-        assert_eq!(OsmFormat::sniff(b"  {\"elements\":[]}"), Some(OsmFormat::OverpassJson));
+        assert_eq!(
+            OsmFormat::sniff(b"  {\"elements\":[]}"),
+            Some(OsmFormat::OverpassJson)
+        );
         assert_eq!(OsmFormat::sniff(b"<osm/>"), Some(OsmFormat::Xml));
     }
 }

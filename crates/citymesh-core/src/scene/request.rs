@@ -162,7 +162,11 @@ mod tests {
         let b = GeoBbox::new(8.39, 49.04, 8.41, 49.06).unwrap();
         assert_eq!(SceneArea::Bbox(b).border(), Border::Truncate);
         assert_eq!(SceneArea::Given(b).border(), Border::Whole);
-        let tile = ImplicitTile { level: 1, x: 1, y: 0 };
+        let tile = ImplicitTile {
+            level: 1,
+            x: 1,
+            y: 0,
+        };
         let implicit = SceneArea::Implicit { root: b, tile };
         assert_eq!(implicit.placement(), Placement::Ecef);
         let got = implicit.bbox().unwrap();

@@ -132,7 +132,8 @@ pub fn build_ground(
                     window.get(ci, cj + 1),
                     window.get(ci + 1, cj + 1),
                 ])
-                .expect("a corner of a valid cell has that cell as a valid neighbour");
+                // The cell itself is one of the four and valid, so the mean always exists.
+                .unwrap_or(c);
                 let (u, v) = corner_pos[k];
                 // Corners outside the box are only referenced after clipping removes them.
                 if u < umin || u > umax || v < vmin || v > vmax {

@@ -46,12 +46,14 @@ pub fn assemble(
     let mut bin = Vec::with_capacity(pos_len * 2 + col_len + index_len + 4);
     for p in &layout.primitives {
         for v in &p.positions {
-            v.iter().for_each(|c| bin.extend_from_slice(&c.to_le_bytes()));
+            v.iter()
+                .for_each(|c| bin.extend_from_slice(&c.to_le_bytes()));
         }
     }
     for p in &layout.primitives {
         for v in &p.normals {
-            v.iter().for_each(|c| bin.extend_from_slice(&c.to_le_bytes()));
+            v.iter()
+                .for_each(|c| bin.extend_from_slice(&c.to_le_bytes()));
         }
     }
     for p in &layout.primitives {
@@ -60,8 +62,18 @@ pub fn assemble(
         }
     }
     let positions = root.push(view(0, pos_len, Some(12), buffer::Target::ArrayBuffer));
-    let normals = root.push(view(pos_len, pos_len, Some(12), buffer::Target::ArrayBuffer));
-    let colours = root.push(view(pos_len * 2, col_len, Some(4), buffer::Target::ArrayBuffer));
+    let normals = root.push(view(
+        pos_len,
+        pos_len,
+        Some(12),
+        buffer::Target::ArrayBuffer,
+    ));
+    let colours = root.push(view(
+        pos_len * 2,
+        col_len,
+        Some(4),
+        buffer::Target::ArrayBuffer,
+    ));
 
     let mut primitives = Vec::with_capacity(layout.primitives.len());
     let mut first = 0usize;
@@ -178,15 +190,18 @@ fn to_json(root: &json::Root, node: &NodePlacement) -> Vec<u8> {
     {
         // z-up to y-up, then the centre (in y-up axes), column-major.
         n["matrix"] = value!([
-            1.0, 0.0, 0.0, 0.0,
-            0.0, 0.0, -1.0, 0.0,
-            0.0, 1.0, 0.0, 0.0,
-            c[0], c[2], -c[1], 1.0]);
+            1.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 1.0, 0.0, 0.0, c[0], c[2], -c[1], 1.0
+        ]);
     }
     serde_json::to_vec(&doc).unwrap_or_default()
 }
 
-fn view(offset: usize, length: usize, stride: Option<usize>, target: buffer::Target) -> buffer::View {
+fn view(
+    offset: usize,
+    length: usize,
+    stride: Option<usize>,
+    target: buffer::Target,
+) -> buffer::View {
     buffer::View {
         buffer: Index::new(0),
         byte_length: USize64::from(length),
@@ -224,7 +239,11 @@ fn attribute(
 }
 
 fn index_bytes(p: &LayoutPrimitive) -> usize {
-    let size = if p.positions.len() <= usize::from(u16::MAX) { 2 } else { 4 };
+    let size = if p.positions.len() <= usize::from(u16::MAX) {
+        2
+    } else {
+        4
+    };
     (p.indices.len() * size).next_multiple_of(4)
 }
 
@@ -249,7 +268,12 @@ fn push_indices(
     while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
-    let view = root.push(view(start, length, None, buffer::Target::ElementArrayBuffer));
+    let view = root.push(view(
+        start,
+        length,
+        None,
+        buffer::Target::ElementArrayBuffer,
+    ));
     let component = if small {
         accessor::ComponentType::U16
     } else {

@@ -91,8 +91,7 @@ impl IndexedLayout {
                             normal,
                         });
                         *slot = found;
-                        p.positions
-                            .push(placed[corner as usize].map(|c| c as f32));
+                        p.positions.push(placed[corner as usize].map(|c| c as f32));
                         p.normals.push(normal);
                         p.colours.push(colour);
                     }
