@@ -3,8 +3,9 @@
 //! while the server is stopped, or restart the server after it: a running server keeps the data
 //! it already parsed in memory.
 
+use crate::cache::TileStore;
 use crate::cache::invalidation::drop_stored;
-use crate::db::{self, TileStore};
+use crate::db;
 use crate::source::data_tiles::OsmTileStore;
 use crate::source::data_tiles::import::{ImportReport, import_files};
 use anyhow::Context;

@@ -1,9 +1,9 @@
 //! Start-up and shutdown: logging, the database, the DEM store, the listener, and a graceful stop
 //! on SIGINT or SIGTERM.
 
-use crate::cache::{TileCache, invalidation};
+use crate::cache::{TileCache, TileStore, invalidation};
 use crate::cli::ServeArgs;
-use crate::db::{self, TileStore};
+use crate::db;
 use crate::dem::DemStore;
 use crate::metrics::Metrics;
 use crate::source::data_tiles::OsmTileStore;

@@ -3,7 +3,7 @@
 //! in SQLite. `citymesh import` (no server running) drops stored tiles the same way.
 
 use super::TileCache;
-use crate::db::TileStore;
+use super::store::TileStore;
 use crate::source::{BuildingSource, DataChanged};
 use citymesh_core::geo::GeoBbox;
 use std::sync::Arc;

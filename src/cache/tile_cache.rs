@@ -2,7 +2,7 @@
 //! requests ask for the same tile at once.
 
 use super::key::TileKey;
-use crate::db::TileStore;
+use super::store::TileStore;
 use crate::generation_stats::GenerationStats;
 use crate::metrics::Metrics;
 use bytes::Bytes;

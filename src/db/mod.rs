@@ -1,9 +1,6 @@
 //! The SQLite database: opened through sqlx with the migrations of `migrations/` applied at
-//! start-up. Each table has its own small store type.
-
-mod tile_store;
-
-pub use tile_store::{StoredTile, TileStore};
+//! start-up. Each table has its own small store type beside its user: generated tiles in
+//! `crate::cache` (`cache/store.rs`), OSM data tiles in `crate::source::data_tiles`.
 
 use sqlx::SqlitePool;
 use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions};

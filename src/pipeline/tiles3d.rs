@@ -1,7 +1,7 @@
 //! The 3D Tiles answers that are not meshes: the tree's layout over a region (for the tileset)
 //! and its binary subtree. Content tiles go through [`super::generate`].
 
-use super::within_timeout;
+use super::limits::within_timeout;
 use crate::error::AppError;
 use crate::state::AppState;
 use citymesh_core::geo::GeoBbox;

@@ -41,6 +41,8 @@ use utoipa_swagger_ui::SwaggerUi;
         license(name = "MIT OR Apache-2.0", identifier = "MIT OR Apache-2.0")
     ),
     servers((url = "/", description = "This server")),
+    // No operation needs credentials.
+    security(()),
     tags(
         (name = "meshes", description = "Scenes and XYZ tiles as binary glTF"),
         (name = "3d tiles", description = "3D Tiles 1.1 with implicit quadtree tiling, for CesiumJS and 3d-tiles-renderer"),

@@ -13,6 +13,7 @@ pub struct BboxQuery {
     /// (the demo city). Latitudes within ±85.0511; the area may not exceed the server's limit (25 km²
     /// by default).
     #[param(
+        required = true,
         pattern = r"^\s*-?[0-9.eE+-]+\s*(,\s*-?[0-9.eE+-]+\s*){3}$",
         example = "8.400,49.010,8.409,49.017"
     )]

@@ -26,7 +26,8 @@ use utoipa::IntoParams;
 #[into_params(parameter_in = Query)]
 pub struct ProceduralQuery {
     /// Seed of the generator (default 1): the same parameters and seed give the same city.
-    pub seed: Option<u64>,
+    #[param(minimum = 0)]
+    pub seed: Option<i64>,
     /// Size in metres, `W,H` or one number for a square (default `1000,1000`; 50 to 5000 each,
     /// within the server's area limit).
     pub size: Option<String>,
@@ -76,7 +77,8 @@ impl ProceduralQuery {
     pub fn params(&self, max_km2: f64) -> Result<ProceduralParams, AppError> {
         let mut p = ProceduralParams::default();
         if let Some(seed) = self.seed {
-            p.seed = seed;
+            p.seed = u64::try_from(seed)
+                .map_err(|_| bad(format!("seed {seed} must be a whole number ≥ 0")))?;
         }
         if let Some(size) = &self.size {
             let v: Vec<f64> = size

@@ -37,6 +37,7 @@ pub struct SceneQuery {
     /// (the demo city). Latitudes within ±85.0511; the area may not exceed the server's limit (25 km²
     /// by default).
     #[param(
+        required = true,
         pattern = r"^\s*-?[0-9.eE+-]+\s*(,\s*-?[0-9.eE+-]+\s*){3}$",
         example = "8.400,49.010,8.409,49.017"
     )]
@@ -54,7 +55,7 @@ pub struct SceneQuery {
 #[utoipa::path(get, path = "/scene", tag = "meshes", params(SceneQuery),
     responses(
         (status = 200, description = "The scene, or its statistics", content(
-            (GlbBytes = "model/gltf-binary"),
+            (inline(GlbBytes) = "model/gltf-binary"),
             (SceneStats = "application/json"),
         )),
         (status = 304, description = "Not modified: the If-None-Match ETag is current"),
@@ -95,10 +96,7 @@ fn negotiate(request: &HeaderMap) -> SceneFormat {
 }
 
 /// Generates the box scene of a `bbox` parameter.
-pub(super) async fn generate_box(
-    state: &AppState,
-    bbox: Option<&str>,
-) -> Result<Generated, AppError> {
+async fn generate_box(state: &AppState, bbox: Option<&str>) -> Result<Generated, AppError> {
     let bbox = parse_bbox(bbox, state.limits.max_bbox_km2)?;
     generate(state, SceneArea::Bbox(bbox), Buildings::FromSource).await
 }

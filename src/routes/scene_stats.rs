@@ -1,13 +1,13 @@
 //! `GET /scene/stats?bbox=`: what went into the scene of an area, as JSON.
 
-use super::params::BboxQuery;
-use super::scene::generate_box;
+use super::params::{BboxQuery, parse_bbox};
 use crate::error::{AppError, ErrorBody};
-use crate::pipeline::Generated;
+use crate::pipeline::{Buildings, Generated, generate};
 use crate::state::AppState;
 use axum::Json;
 use axum::extract::rejection::QueryRejection;
 use axum::extract::{Query, State};
+use citymesh_core::scene::SceneArea;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use utoipa::ToSchema;
@@ -94,7 +94,8 @@ pub async fn scene_stats(
     query: Result<Query<BboxQuery>, QueryRejection>,
 ) -> Result<Json<SceneStats>, AppError> {
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
-    let generated = generate_box(&state, query.bbox.as_deref()).await?;
+    let bbox = parse_bbox(query.bbox.as_deref(), state.limits.max_bbox_km2)?;
+    let generated = generate(&state, SceneArea::Bbox(bbox), Buildings::FromSource).await?;
     Ok(Json(SceneStats::of(&generated)))
 }
 

@@ -3,7 +3,7 @@
 //! goes through the same tile cache as XYZ tiles.
 
 use super::conditional::cached_response;
-use super::params::{BboxQuery, parse_bbox};
+use super::params::parse_bbox;
 use super::schemas::{GlbBytes, SubtreeBytes};
 use crate::cache::TileKey;
 use crate::error::{AppError, ErrorBody};
@@ -17,6 +17,17 @@ use axum::response::{IntoResponse, Response};
 use citymesh_core::geo::{GeoBbox, ImplicitTile};
 use citymesh_core::scene::SceneArea;
 use citymesh_core::tiles3d::{ImplicitLayout, tileset_json};
+use serde::Deserialize;
+use utoipa::IntoParams;
+
+#[derive(Debug, Deserialize, IntoParams)]
+#[into_params(parameter_in = Query)]
+pub struct TilesetQuery {
+    /// The region as `minLon,minLat,maxLon,maxLat`; default: the extent of the served buildings
+    /// (the demo city, or the `--osm` files). Required when buildings come from data tiles.
+    #[param(example = "8.400,49.010,8.409,49.017")]
+    pub bbox: Option<String>,
+}
 
 /// The tree's root: the `bbox` given, else the extent of the served buildings.
 fn root_for(state: &AppState, text: Option<&str>) -> Result<GeoBbox, AppError> {
@@ -78,7 +89,7 @@ fn parse_implicit(level: &str, x: &str, y: &str, ext: &str) -> Result<ImplicitTi
 /// ECEF) sits at the deepest level, tiles of at most 400 m. Subtrees are binary. Without `bbox`,
 /// the region is the extent of the served buildings (the demo city, or the `--osm` files); a
 /// server that fetches data by area needs it.
-#[utoipa::path(get, path = "/3dtiles/tileset.json", tag = "3d tiles", params(BboxQuery),
+#[utoipa::path(get, path = "/3dtiles/tileset.json", tag = "3d tiles", params(TilesetQuery),
     responses(
         (status = 200, description = "The tileset", body = Object),
         (status = 400, description = "The bbox is malformed or too large, or needed and missing", body = ErrorBody),
@@ -89,7 +100,7 @@ fn parse_implicit(level: &str, x: &str, y: &str, ext: &str) -> Result<ImplicitTi
     ))]
 pub async fn tileset(
     State(state): State<AppState>,
-    query: Result<Query<BboxQuery>, QueryRejection>,
+    query: Result<Query<TilesetQuery>, QueryRejection>,
 ) -> Result<Response, AppError> {
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
     let root = root_for(&state, query.bbox.as_deref())?;

@@ -1,6 +1,7 @@
-//! Generated content kept in SQLite under typed keys, so it survives a restart.
+//! The SQLite level of the tile cache: generated content under typed keys, so it survives a
+//! restart.
 
-use crate::cache::{TileId, TileKey};
+use super::key::{TileId, TileKey};
 use bytes::Bytes;
 use citymesh_core::geo::GeoBbox;
 use sqlx::{Row, SqlitePool};

@@ -1,0 +1,98 @@
+//! Scenes: an area's buildings and terrain through the core generator, on the blocking pool.
+
+use super::limits::{generation_slot, within_timeout};
+use crate::error::AppError;
+use crate::generation_stats::GenerationStats;
+use crate::source::AreaBuildings;
+use crate::state::AppState;
+use bytes::Bytes;
+use citymesh_core::building::set::BuildingSet;
+use citymesh_core::scene::{SceneArea, SceneRequest};
+use std::sync::Arc;
+use std::time::Instant;
+
+/// A generated GLB and what went into it.
+pub struct Generated {
+    pub glb: Bytes,
+    pub stats: GenerationStats,
+}
+
+/// Whose buildings stand in the scene.
+pub enum Buildings {
+    /// The server's source, for the area.
+    FromSource,
+    /// Buildings the request brought (procedural or uploaded).
+    Given(Arc<BuildingSet>),
+}
+
+/// Generates an area as GLB bytes: gathers its buildings (which may ask upstream), then waits for
+/// a generation slot (503 when none frees up in time) and generates on the blocking pool. The
+/// whole takes at most `--request-timeout-s` (503 after that). 3D Tiles content that holds no
+/// building group is not generated: 404 `no_content`.
+pub async fn generate(
+    state: &AppState,
+    area: SceneArea,
+    buildings: Buildings,
+) -> Result<Generated, AppError> {
+    within_timeout(state, generate_within(state, area, buildings)).await
+}
+
+async fn generate_within(
+    state: &AppState,
+    area: SceneArea,
+    buildings: Buildings,
+) -> Result<Generated, AppError> {
+    let bbox = area
+        .bbox()
+        .map_err(|e| AppError::bad_request("invalid_tile", e.to_string()))?;
+    let buildings = match buildings {
+        Buildings::FromSource => state.source.buildings(&bbox).await?,
+        Buildings::Given(set) => AreaBuildings {
+            set,
+            origin: "request".to_owned(),
+        },
+    };
+    let _slot = generation_slot(state).await?;
+    let dem = state.dem.clone();
+    let generated = tokio::task::spawn_blocking(move || {
+        let started = Instant::now();
+        let request: SceneRequest<'_> = area
+            .request(&buildings.set)
+            .map_err(|e| AppError::bad_request("invalid_tile", e.to_string()))?;
+        if matches!(area, SceneArea::Implicit { .. }) && request.groups.is_empty() {
+            return Err(AppError::not_found(
+                "no_content",
+                "this tile has no content (see the subtree's availability)",
+            ));
+        }
+        // Whole buildings may reach past the box: their ground must be loaded too.
+        let lookup = dem.lookup(&request.terrain_bbox());
+        let output = request.generate(&lookup.model);
+        let stats = GenerationStats {
+            generation_ms: started.elapsed().as_secs_f64() * 1e3,
+            vertices: output.glb.vertices,
+            triangles: output.glb.triangles,
+            ground: output.ground,
+            missing_dem: lookup.missing,
+            buildings: output.buildings,
+            osm: buildings.origin,
+            groups: request.groups.len(),
+        };
+        Ok(Generated {
+            glb: Bytes::from(output.glb.bytes),
+            stats,
+        })
+    })
+    .await??;
+    state.metrics.generations.inc();
+    state
+        .metrics
+        .generation_seconds
+        .observe(generated.stats.generation_ms / 1e3);
+    tracing::debug!(
+        ms = generated.stats.generation_ms,
+        bytes = generated.glb.len(),
+        "generated"
+    );
+    Ok(generated)
+}
