@@ -2,15 +2,23 @@
 //! padded with spaces and the BIN chunk padded with zeros, each to 4 bytes.
 
 /// Wraps a JSON document and a binary buffer into a GLB. An empty buffer gets no BIN chunk.
-pub fn write_container(mut json: Vec<u8>, mut bin: Vec<u8>) -> Vec<u8> {
+pub fn write_container(json: Vec<u8>, bin: &[u8]) -> Vec<u8> {
+    write_container_with(json, bin.len(), |out| out.extend_from_slice(bin))
+}
+
+/// Wraps a JSON document and a binary buffer of `bin_len` bytes, which `write_bin` appends to
+/// the output in place (no intermediate copy), into a GLB.
+pub fn write_container_with(
+    mut json: Vec<u8>,
+    bin_len: usize,
+    write_bin: impl FnOnce(&mut Vec<u8>),
+) -> Vec<u8> {
     while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
-    while !bin.len().is_multiple_of(4) {
-        bin.push(0);
-    }
-    let has_bin = !bin.is_empty();
-    let total = 12 + 8 + json.len() + if has_bin { 8 + bin.len() } else { 0 };
+    let padded = bin_len.next_multiple_of(4);
+    let has_bin = bin_len > 0;
+    let total = 12 + 8 + json.len() + if has_bin { 8 + padded } else { 0 };
     let mut out = Vec::with_capacity(total);
     out.extend_from_slice(b"glTF");
     out.extend_from_slice(&2u32.to_le_bytes());
@@ -19,9 +27,16 @@ pub fn write_container(mut json: Vec<u8>, mut bin: Vec<u8>) -> Vec<u8> {
     out.extend_from_slice(b"JSON");
     out.extend_from_slice(&json);
     if has_bin {
-        out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+        out.extend_from_slice(&(padded as u32).to_le_bytes());
         out.extend_from_slice(b"BIN\0");
-        out.extend_from_slice(&bin);
+        let start = out.len();
+        write_bin(&mut out);
+        debug_assert_eq!(
+            out.len() - start,
+            bin_len,
+            "the binary buffer's announced length"
+        );
+        out.resize(start + padded, 0);
     }
     out
 }
@@ -32,7 +47,7 @@ mod tests {
 
     #[test]
     fn chunks_are_padded_and_lengths_add_up() {
-        let glb = write_container(b"{}".to_vec(), vec![1, 2, 3, 4, 5]);
+        let glb = write_container(b"{}".to_vec(), &[1, 2, 3, 4, 5]);
         // 12 header + 8 + 4 JSON ("{}  ") + 8 + 8 BIN (5 bytes + 3 zeros).
         assert_eq!(glb.len(), 40);
         assert_eq!(&glb[0..4], b"glTF");
@@ -40,6 +55,6 @@ mod tests {
         assert_eq!(&glb[20..24], b"{}  ");
         assert_eq!(&glb[28..32], b"BIN\0");
         assert_eq!(&glb[32..40], &[1, 2, 3, 4, 5, 0, 0, 0]);
-        assert_eq!(write_container(b"{}".to_vec(), Vec::new()).len(), 24);
+        assert_eq!(write_container(b"{}".to_vec(), &[]).len(), 24);
     }
 }

@@ -3,7 +3,8 @@
 //!
 //! The buffer holds, in order: all positions (f32 VEC3), all normals (f32 VEC3), all colours
 //! (normalised u8 VEC4), each a view shared by the primitives' accessors (hence a byte stride),
-//! then each primitive's indices (u16 when its vertices fit, else u32) in a view of its own.
+//! then each primitive's indices (u16 when its vertices fit, else u32) in a view of its own. The
+//! JSON is assembled from the sizes alone, so the buffer can be written straight into the GLB.
 
 use super::layout::{IndexedLayout, LayoutPrimitive};
 use super::placement::{NodePlacement, Placed};
@@ -15,12 +16,8 @@ use std::collections::BTreeMap;
 
 const GENERATOR: &str = concat!("citymesh ", env!("CARGO_PKG_VERSION"));
 
-/// The JSON bytes and the binary buffer of a layout.
-pub fn assemble(
-    layout: &IndexedLayout,
-    placed: &Placed,
-    buildings: &[String],
-) -> (Vec<u8>, Vec<u8>) {
+/// The JSON document of a layout; its binary buffer is [`write_binary`]'s output.
+pub fn assemble(layout: &IndexedLayout, placed: &Placed, buildings: &[String]) -> Vec<u8> {
     let mut root = json::Root {
         asset: json::Asset {
             copyright: None,
@@ -37,30 +34,11 @@ pub fn assemble(
     if vertices == 0 {
         root.scenes.push(scene(Vec::new(), extras));
         root.scene = Some(Index::new(0));
-        return (to_json(&root, &placed.node), Vec::new());
+        return to_json(&root, &placed.node);
     }
 
     let pos_len = vertices * 12;
     let col_len = vertices * 4;
-    let index_len: usize = layout.primitives.iter().map(index_bytes).sum();
-    let mut bin = Vec::with_capacity(pos_len * 2 + col_len + index_len + 4);
-    for p in &layout.primitives {
-        for v in &p.positions {
-            v.iter()
-                .for_each(|c| bin.extend_from_slice(&c.to_le_bytes()));
-        }
-    }
-    for p in &layout.primitives {
-        for v in &p.normals {
-            v.iter()
-                .for_each(|c| bin.extend_from_slice(&c.to_le_bytes()));
-        }
-    }
-    for p in &layout.primitives {
-        for c in &p.colours {
-            bin.extend_from_slice(c);
-        }
-    }
     let positions = root.push(view(0, pos_len, Some(12), buffer::Target::ArrayBuffer));
     let normals = root.push(view(
         pos_len,
@@ -74,6 +52,7 @@ pub fn assemble(
         Some(4),
         buffer::Target::ArrayBuffer,
     ));
+    let mut index_offset = pos_len * 2 + col_len;
 
     let mut primitives = Vec::with_capacity(layout.primitives.len());
     let mut first = 0usize;
@@ -106,7 +85,23 @@ pub fn assemble(
         );
         colour.normalized = true;
         let colour = root.push(colour);
-        let indices = push_indices(&mut root, &mut bin, p);
+        let (component, size) = index_type(p);
+        let length = p.indices.len() * size;
+        let index_view = root.push(view(
+            index_offset,
+            length,
+            None,
+            buffer::Target::ElementArrayBuffer,
+        ));
+        index_offset += length.next_multiple_of(4);
+        let indices = root.push(attribute(
+            index_view,
+            0,
+            p.indices.len(),
+            component,
+            accessor::Type::Scalar,
+            None,
+        ));
         let name = p.material.map_or("mesh", |m| m.name());
         let material = root.push(json::Material {
             name: Some(name.to_owned()),
@@ -135,7 +130,7 @@ pub fn assemble(
         first += count;
     }
     root.push(json::Buffer {
-        byte_length: USize64::from(bin.len()),
+        byte_length: USize64::from(binary_len(layout)),
         name: None,
         uri: None,
         extensions: None,
@@ -155,7 +150,66 @@ pub fn assemble(
     });
     root.scenes.push(scene(vec![node], extras));
     root.scene = Some(Index::new(0));
-    (to_json(&root, &placed.node), bin)
+    to_json(&root, &placed.node)
+}
+
+/// The length of the binary buffer: the attributes, then each primitive's indices padded to 4
+/// bytes.
+pub fn binary_len(layout: &IndexedLayout) -> usize {
+    let vertices = layout.vertex_count();
+    let indices: usize = layout
+        .primitives
+        .iter()
+        .map(|p| (p.indices.len() * index_type(p).1).next_multiple_of(4))
+        .sum();
+    vertices * (12 + 12 + 4) + indices
+}
+
+/// Appends the binary buffer [`assemble`] describes ([`binary_len`] bytes) to `out`.
+pub fn write_binary(layout: &IndexedLayout, out: &mut Vec<u8>) {
+    for p in &layout.primitives {
+        for v in &p.positions {
+            for c in v {
+                out.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+    }
+    for p in &layout.primitives {
+        for v in &p.normals {
+            for c in v {
+                out.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+    }
+    for p in &layout.primitives {
+        for c in &p.colours {
+            out.extend_from_slice(c);
+        }
+    }
+    for p in &layout.primitives {
+        if index_type(p).1 == 2 {
+            for &i in &p.indices {
+                // The layout's vertices fit u16 here, so the cast is exact.
+                out.extend_from_slice(&(i as u16).to_le_bytes());
+            }
+        } else {
+            for &i in &p.indices {
+                out.extend_from_slice(&i.to_le_bytes());
+            }
+        }
+        while !out.len().is_multiple_of(4) {
+            out.push(0);
+        }
+    }
+}
+
+/// u16 indices when the primitive's vertices fit, else u32: the type and its size.
+fn index_type(p: &LayoutPrimitive) -> (accessor::ComponentType, usize) {
+    if p.positions.len() <= usize::from(u16::MAX) {
+        (accessor::ComponentType::U16, 2)
+    } else {
+        (accessor::ComponentType::U32, 4)
+    }
 }
 
 fn scene(nodes: Vec<Index<json::Node>>, extras: Value) -> json::Scene {
@@ -236,57 +290,6 @@ fn attribute(
         normalized: false,
         sparse: None,
     }
-}
-
-fn index_bytes(p: &LayoutPrimitive) -> usize {
-    let size = if p.positions.len() <= usize::from(u16::MAX) {
-        2
-    } else {
-        4
-    };
-    (p.indices.len() * size).next_multiple_of(4)
-}
-
-/// Appends the primitive's indices to the buffer in a view of their own, u16 when they fit.
-fn push_indices(
-    root: &mut json::Root,
-    bin: &mut Vec<u8>,
-    p: &LayoutPrimitive,
-) -> Index<json::Accessor> {
-    let start = bin.len();
-    let small = p.positions.len() <= usize::from(u16::MAX);
-    if small {
-        for &i in &p.indices {
-            bin.extend_from_slice(&(i as u16).to_le_bytes());
-        }
-    } else {
-        for &i in &p.indices {
-            bin.extend_from_slice(&i.to_le_bytes());
-        }
-    }
-    let length = bin.len() - start;
-    while !bin.len().is_multiple_of(4) {
-        bin.push(0);
-    }
-    let view = root.push(view(
-        start,
-        length,
-        None,
-        buffer::Target::ElementArrayBuffer,
-    ));
-    let component = if small {
-        accessor::ComponentType::U16
-    } else {
-        accessor::ComponentType::U32
-    };
-    root.push(attribute(
-        view,
-        0,
-        p.indices.len(),
-        component,
-        accessor::Type::Scalar,
-        None,
-    ))
 }
 
 /// Per-component minimum and maximum of positions.

@@ -45,10 +45,10 @@ const NONE: u32 = u32::MAX;
 impl IndexedLayout {
     /// Lays out `mesh` with `placed` positions (one per mesh vertex, in file axes).
     pub fn new(mesh: &Mesh, placed: &[[f64; 3]]) -> Self {
-        let mut by_material: Vec<Vec<(usize, [f32; 3])>> = vec![Vec::new(); Material::ALL.len()];
+        let mut by_material: Vec<Vec<(u32, [f32; 3])>> = vec![Vec::new(); Material::ALL.len()];
         for (t, (&tri, style)) in mesh.triangles.iter().zip(&mesh.styles).enumerate() {
             if let Some(n) = face_normal(tri.map(|i| placed[i as usize])) {
-                by_material[style.material as usize].push((t, n));
+                by_material[style.material as usize].push((t as u32, n));
             }
         }
         // The first vertex written for each mesh corner in the current primitive.
@@ -58,14 +58,20 @@ impl IndexedLayout {
             if triangles.is_empty() {
                 continue;
             }
+            // At most three vertices per triangle: reserving that never moves the buffers, and
+            // pages never written are never touched.
+            let most = triangles.len() * 3;
             let mut p = LayoutPrimitive {
                 material: Some(material),
-                indices: Vec::with_capacity(triangles.len() * 3),
-                ..LayoutPrimitive::default()
+                positions: Vec::with_capacity(most),
+                normals: Vec::with_capacity(most),
+                colours: Vec::with_capacity(most),
+                indices: Vec::with_capacity(most),
             };
-            let mut written: Vec<Written> = Vec::new();
-            let mut touched: Vec<u32> = Vec::new();
+            let mut written: Vec<Written> = Vec::with_capacity(most);
+            let mut touched: Vec<u32> = Vec::with_capacity(most);
             for (t, normal) in triangles {
+                let t = t as usize;
                 let [r, g, b] = mesh.styles[t].colour.to_linear_u8();
                 let colour = [r, g, b, 255];
                 for corner in mesh.triangles[t] {

@@ -14,7 +14,7 @@ mod document;
 mod layout;
 mod placement;
 
-pub use container::write_container;
+pub use container::{write_container, write_container_with};
 pub use layout::{IndexedLayout, LayoutPrimitive};
 pub use placement::{Placed, Placement, place};
 
@@ -42,9 +42,12 @@ pub fn encode_glb(
     let placed = place(mesh, frame, placement);
     let layout = IndexedLayout::new(mesh, &placed.positions);
     let (vertices, triangles) = (layout.vertex_count(), layout.triangle_count());
-    let (json, bin) = document::assemble(&layout, &placed, buildings);
+    let json = document::assemble(&layout, &placed, buildings);
+    let bytes = write_container_with(json, document::binary_len(&layout), |out| {
+        document::write_binary(&layout, out);
+    });
     EncodedGlb {
-        bytes: write_container(json, bin),
+        bytes,
         vertices,
         triangles,
     }
