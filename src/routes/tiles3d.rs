@@ -154,7 +154,12 @@ pub async fn subtree(
            ("x" = u32, Path, description = "Column at that level, from the west", minimum = 0),
            ("y" = u32, Path, description = "Row at that level, from the south", minimum = 0)),
     responses(
-        (status = 200, description = "The content", content_type = "model/gltf-binary", body = inline(GlbBytes)),
+        (status = 200, description = "The content", content_type = "model/gltf-binary", body = inline(GlbBytes),
+            headers(
+                ("X-Citymesh-Cache" = String, description = "`hit` (memory), `sqlite` (the on-disk cache) or `miss` (generated now)"),
+                ("ETag" = String, description = "Strong validator of the bytes; send it back in If-None-Match"),
+                ("Cache-Control" = String, description = "`public, max-age=3600`"),
+            )),
         (status = 304, description = "Not modified: the If-None-Match ETag is current"),
         (status = 400, description = "The region or a coordinate is malformed, or the region too large", body = ErrorBody),
         (status = 404, description = "The tile has no content, or the format is not .glb", body = ErrorBody),

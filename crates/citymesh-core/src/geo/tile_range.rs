@@ -1,5 +1,5 @@
-//! A rectangle of XYZ tiles of one zoom: the tiles covering an area, used to find the data tiles
-//! an area needs and the served tiles a data change touches.
+//! A rectangle of XYZ tiles of one zoom: the tiles covering an area, e.g. the OSM data tiles an
+//! area needs.
 
 use super::{GeoBbox, TileCoord};
 

@@ -167,39 +167,49 @@ pub fn binary_len(layout: &IndexedLayout) -> usize {
 
 /// Appends the binary buffer [`assemble`] describes ([`binary_len`] bytes) to `out`.
 pub fn write_binary(layout: &IndexedLayout, out: &mut Vec<u8>) {
+    let start = out.len();
+    out.resize(start + binary_len(layout), 0);
+    let mut rest = &mut out[start..];
+    let mut take = |bytes: usize| {
+        let (head, tail) = std::mem::take(&mut rest).split_at_mut(bytes);
+        rest = tail;
+        head
+    };
     for p in &layout.primitives {
-        for v in &p.positions {
-            for c in v {
-                out.extend_from_slice(&c.to_le_bytes());
-            }
+        write_vec3(take(p.positions.len() * 12), &p.positions);
+    }
+    for p in &layout.primitives {
+        write_vec3(take(p.normals.len() * 12), &p.normals);
+    }
+    for p in &layout.primitives {
+        for (d, c) in take(p.colours.len() * 4)
+            .chunks_exact_mut(4)
+            .zip(&p.colours)
+        {
+            d.copy_from_slice(c);
         }
     }
     for p in &layout.primitives {
-        for v in &p.normals {
-            for c in v {
-                out.extend_from_slice(&c.to_le_bytes());
-            }
-        }
-    }
-    for p in &layout.primitives {
-        for c in &p.colours {
-            out.extend_from_slice(c);
-        }
-    }
-    for p in &layout.primitives {
-        if index_type(p).1 == 2 {
-            for &i in &p.indices {
+        let size = index_type(p).1;
+        let dst = take((p.indices.len() * size).next_multiple_of(4));
+        if size == 2 {
+            for (d, &i) in dst.chunks_exact_mut(2).zip(&p.indices) {
                 // The layout's vertices fit u16 here, so the cast is exact.
-                out.extend_from_slice(&(i as u16).to_le_bytes());
+                d.copy_from_slice(&(i as u16).to_le_bytes());
             }
         } else {
-            for &i in &p.indices {
-                out.extend_from_slice(&i.to_le_bytes());
+            for (d, &i) in dst.chunks_exact_mut(4).zip(&p.indices) {
+                d.copy_from_slice(&i.to_le_bytes());
             }
         }
-        while !out.len().is_multiple_of(4) {
-            out.push(0);
-        }
+    }
+}
+
+fn write_vec3(dst: &mut [u8], values: &[[f32; 3]]) {
+    for (d, v) in dst.chunks_exact_mut(12).zip(values) {
+        d[0..4].copy_from_slice(&v[0].to_le_bytes());
+        d[4..8].copy_from_slice(&v[1].to_le_bytes());
+        d[8..12].copy_from_slice(&v[2].to_le_bytes());
     }
 }
 

@@ -1,16 +1,17 @@
 //! Stage 2 of the encoder: the indexed vertex layout.
 //!
 //! Faces are flat shaded: every vertex carries its face's normal and colour. A vertex is shared
-//! by the triangles that meet at one mesh corner with the same colour and the same normal (to
-//! within [`SAME_PLANE_COS`]), which are the triangles of one planar face: a wall quad becomes 4
+//! by the triangles that meet at one mesh corner with the same colour and the same normal
+//! (quantised to [`NORMAL_STEPS`] steps per unit, so rounding noise between the triangles of one
+//! plane does not split them), which are the triangles of one planar face: a wall quad becomes 4
 //! vertices instead of 6, a flat roof of n triangles about n + 2. Triangles with no area (in
 //! f64, or once rounded to f32) are left out, since they have no normal.
 
 use crate::mesh::{Material, Mesh, triangle_normal};
 
-/// Two triangle normals closer than this cosine (about 0.08 degrees) lie in one plane for
-/// sharing: far below any visible crease, far above rounding noise.
-const SAME_PLANE_COS: f32 = 0.999_999;
+/// Normals are compared in steps of 1/16384 per component (about 0.0035 degrees): far below any
+/// visible crease, far above the rounding noise between triangles of one plane.
+const NORMAL_STEPS: f32 = 16_384.0;
 
 /// One primitive: a material's vertices and triangles.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -32,12 +33,23 @@ pub struct IndexedLayout {
     pub primitives: Vec<LayoutPrimitive>,
 }
 
-/// A vertex already written for a mesh corner: the next one for the same corner, its colour and
-/// its normal.
+/// A vertex already written for a mesh corner: the next one for the same corner, and its
+/// colour and quantised normal packed into one comparable key.
 struct Written {
     next: u32,
-    colour: [u8; 4],
-    normal: [f32; 3],
+    key: u64,
+}
+
+/// The sharing key of a face: its colour (24 bits) and quantised normal (3 x 13 bits).
+fn face_key(colour: [u8; 4], n: [f32; 3]) -> u64 {
+    // c * steps + 16384.5 is positive for a unit component, so truncation rounds to nearest.
+    let q = |c: f32| u64::from((c * NORMAL_STEPS + 16_384.5) as u32 & 0x7fff);
+    (u64::from(colour[0]) << 56)
+        | (u64::from(colour[1]) << 48)
+        | (u64::from(colour[2]) << 40)
+        | (q(n[0]) << 30)
+        | (q(n[1]) << 15)
+        | q(n[2])
 }
 
 const NONE: u32 = u32::MAX;
@@ -45,7 +57,9 @@ const NONE: u32 = u32::MAX;
 impl IndexedLayout {
     /// Lays out `mesh` with `placed` positions (one per mesh vertex, in file axes).
     pub fn new(mesh: &Mesh, placed: &[[f64; 3]]) -> Self {
-        let mut by_material: Vec<Vec<(u32, [f32; 3])>> = vec![Vec::new(); Material::ALL.len()];
+        let mut by_material: Vec<Vec<(u32, [f32; 3])>> = (0..Material::ALL.len())
+            .map(|_| Vec::with_capacity(mesh.triangles.len()))
+            .collect();
         for (t, (&tri, style)) in mesh.triangles.iter().zip(&mesh.styles).enumerate() {
             if let Some(n) = face_normal(tri.map(|i| placed[i as usize])) {
                 by_material[style.material as usize].push((t as u32, n));
@@ -74,13 +88,14 @@ impl IndexedLayout {
                 let t = t as usize;
                 let [r, g, b] = mesh.styles[t].colour.to_linear_u8();
                 let colour = [r, g, b, 255];
+                let key = face_key(colour, normal);
                 for corner in mesh.triangles[t] {
                     let slot = &mut first[corner as usize];
                     let mut at = *slot;
                     let mut found = NONE;
                     while at != NONE {
                         let w = &written[at as usize];
-                        if w.colour == colour && dot(w.normal, normal) >= SAME_PLANE_COS {
+                        if w.key == key {
                             found = at;
                             break;
                         }
@@ -91,11 +106,7 @@ impl IndexedLayout {
                         if *slot == NONE {
                             touched.push(corner);
                         }
-                        written.push(Written {
-                            next: *slot,
-                            colour,
-                            normal,
-                        });
+                        written.push(Written { next: *slot, key });
                         *slot = found;
                         p.positions.push(placed[corner as usize].map(|c| c as f32));
                         p.normals.push(normal);
@@ -121,10 +132,6 @@ impl IndexedLayout {
     pub fn triangle_count(&self) -> usize {
         self.primitives.iter().map(|p| p.indices.len() / 3).sum()
     }
-}
-
-fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 /// The unit normal of a counter-clockwise triangle in file axes, or `None` when the triangle has
