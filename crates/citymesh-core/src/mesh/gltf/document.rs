@@ -248,10 +248,11 @@ fn scene_extras(node: &NodePlacement, buildings: &[String]) -> Value {
 /// The document as JSON bytes. `gltf-json` keeps node matrices in f32, which would move ECEF
 /// content by up to half a metre, so the ECEF node's matrix is written here in f64.
 fn to_json(root: &json::Root, node: &NodePlacement) -> Vec<u8> {
+    let NodePlacement::EcefCentre(c) = *node else {
+        return serde_json::to_vec(root).unwrap_or_default();
+    };
     let mut doc = serde_json::to_value(root).unwrap_or(Value::Null);
-    if let NodePlacement::EcefCentre(c) = *node
-        && let Some(n) = doc.pointer_mut("/nodes/0")
-    {
+    if let Some(n) = doc.pointer_mut("/nodes/0") {
         // z-up to y-up, then the centre (in y-up axes), column-major.
         n["matrix"] = value!([
             1.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 1.0, 0.0, 0.0, c[0], c[2], -c[1], 1.0
