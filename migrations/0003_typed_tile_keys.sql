@@ -24,6 +24,12 @@ CREATE TABLE generated_tiles (
     bytes        BLOB    NOT NULL,
     etag         TEXT    NOT NULL,
     created_at   INTEGER NOT NULL,
+    -- length(bytes), summed to keep the store under --tile-store-mb.
+    size         INTEGER NOT NULL,
+    -- Milliseconds since the epoch of the last write or SQLite hit: the least recently used
+    -- tiles are evicted first.
+    last_used    INTEGER NOT NULL,
     PRIMARY KEY (scheme, region, z, x, y, encoding, roofs, data_version)
 );
 CREATE INDEX generated_tiles_area ON generated_tiles (west, east, south, north);
+CREATE INDEX generated_tiles_last_used ON generated_tiles (last_used);

@@ -147,6 +147,37 @@ pub struct ServeArgs {
     #[arg(long, env = "CITYMESH_MAX_BBOX_KM2", default_value_t = 25.0)]
     pub max_bbox_km2: f64,
 
+    /// Most ground cells a requested box may span, counted at 1 arc-second (the finest SRTM
+    /// grid): bounds long, thin boxes the area limit lets through.
+    #[arg(long, env = "CITYMESH_MAX_GROUND_CELLS", default_value_t = 250_000)]
+    pub max_ground_cells: u64,
+
+    /// Largest Overpass answer accepted, megabytes: a larger one is refused (502), nothing stored.
+    #[arg(long, env = "CITYMESH_OVERPASS_MAX_MB", default_value_t = 64)]
+    pub overpass_max_mb: u64,
+
+    /// Bound of the SQLite store of generated tiles, megabytes; least recently used tiles are
+    /// evicted past it (OSM data is never evicted by this).
+    #[arg(long, env = "CITYMESH_TILE_STORE_MB", default_value_t = 2048)]
+    pub tile_store_mb: u64,
+
+    /// Most client connections open at once; further clients wait in the listen backlog.
+    #[arg(long, env = "CITYMESH_MAX_CONNECTIONS", default_value_t = 1024)]
+    pub max_connections: usize,
+
+    /// Seconds a client may take to send a request's headers.
+    #[arg(long, env = "CITYMESH_HEADER_TIMEOUT_S", default_value_t = 10.0)]
+    pub header_timeout_s: f64,
+
+    /// Seconds a client may take to send a request's body.
+    #[arg(long, env = "CITYMESH_BODY_TIMEOUT_S", default_value_t = 30.0)]
+    pub body_timeout_s: f64,
+
+    /// Seconds a connection may stay without any traffic (between requests, or while a request
+    /// is neither read nor answered) before it is closed.
+    #[arg(long, env = "CITYMESH_IDLE_TIMEOUT_S", default_value_t = 150.0)]
+    pub idle_timeout_s: f64,
+
     /// Memory for parsed DEM files, in megabytes (an SRTM3 file takes 2.9 MB, SRTM1 26 MB).
     #[arg(long, env = "CITYMESH_DEM_CACHE_MB", default_value_t = 512)]
     pub dem_cache_mb: u64,

@@ -110,9 +110,7 @@ impl IntoResponse for AppError {
                 (
                     StatusCode::BAD_GATEWAY,
                     "upstream_failed",
-                    format!(
-                        "the OpenStreetMap source (Overpass) failed: {cause}; nothing was stored, try again later"
-                    ),
+                    format!("{cause}; nothing was stored, try again later"),
                 )
             }
             AppError::Unavailable {
@@ -129,9 +127,7 @@ impl IntoResponse for AppError {
                 (
                     StatusCode::GATEWAY_TIMEOUT,
                     "upstream_timeout",
-                    format!(
-                        "the OpenStreetMap source (Overpass) did not answer in time ({cause}); try again later"
-                    ),
+                    format!("{cause}; try again later"),
                 )
             }
             AppError::Internal(cause) => {
@@ -175,8 +171,12 @@ impl From<crate::upstream::OverpassError> for AppError {
                 retry_after_secs: retry_after
                     .map_or(UPSTREAM_RETRY_AFTER_SECS, |d| d.as_secs().max(1)),
             },
-            OverpassError::Timeout(_) => AppError::UpstreamTimeout(e.to_string()),
-            OverpassError::Bad(m) => AppError::UpstreamFailed(m),
+            OverpassError::Timeout(_) | OverpassError::GatewayTimeout => {
+                AppError::UpstreamTimeout(e.to_string())
+            }
+            OverpassError::TooLarge { .. } | OverpassError::Bad(_) => {
+                AppError::UpstreamFailed(e.to_string())
+            }
         }
     }
 }
@@ -186,6 +186,9 @@ impl From<crate::source::SourceError> for AppError {
         use crate::source::SourceError;
         match e {
             SourceError::Upstream(e) => e.into(),
+            SourceError::AreaTooLarge { .. } => {
+                AppError::bad_request("bbox_too_large", e.to_string())
+            }
             other => AppError::internal(other),
         }
     }

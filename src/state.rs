@@ -13,12 +13,16 @@ use tokio::sync::Semaphore;
 #[derive(Debug, Clone, Copy)]
 pub struct Limits {
     pub max_bbox_km2: f64,
+    /// Most ground cells (1 arc-second) a requested box may span.
+    pub max_ground_cells: u64,
     pub min_zoom: u8,
     pub max_zoom: u8,
     /// How long a request waits for a free generation slot before a 503.
     pub generation_wait: Duration,
     /// How long gathering data and generating may take before a 503.
     pub request_timeout: Duration,
+    /// How long a client may take to send a request body before a 408.
+    pub body_timeout: Duration,
 }
 
 #[derive(Clone)]

@@ -1,10 +1,17 @@
 //! The SQLite level of the tile cache: generated content under typed keys, so it survives a
-//! restart.
+//! restart, bounded in bytes: past the bound the least recently used tiles are evicted.
 
 use super::key::{TileId, TileKey};
 use bytes::Bytes;
 use citymesh_core::geo::GeoBbox;
 use sqlx::{Row, SqlitePool};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Eviction goes down to this share of the bound, so it does not run on every write.
+const EVICT_TO: f64 = 0.9;
+/// Tiles deleted per eviction statement.
+const EVICT_BATCH: i64 = 32;
 
 /// A stored tile: its bytes and their ETag.
 #[derive(Debug, Clone)]
@@ -16,6 +23,18 @@ pub struct StoredTile {
 #[derive(Clone)]
 pub struct TileStore {
     pool: SqlitePool,
+    /// Bytes of stored tiles at most (`u64::MAX`: unbounded).
+    max_bytes: u64,
+    /// Bytes of stored tiles now.
+    used: Arc<AtomicU64>,
+    /// One eviction at a time.
+    evicting: Arc<tokio::sync::Mutex<()>>,
+}
+
+fn now_ms() -> i64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| i64::try_from(d.as_millis()).unwrap_or(i64::MAX))
 }
 
 /// The key's columns: scheme, region text, z, x, y.
@@ -41,8 +60,35 @@ fn columns(key: &TileKey) -> (&'static str, String, i64, i64, i64) {
 }
 
 impl TileStore {
+    /// An unbounded store (for `citymesh import`, which only deletes).
     pub fn new(pool: SqlitePool) -> Self {
-        Self { pool }
+        Self {
+            pool,
+            max_bytes: u64::MAX,
+            used: Arc::new(AtomicU64::new(0)),
+            evicting: Arc::new(tokio::sync::Mutex::new(())),
+        }
+    }
+
+    /// A store bounded to `max_bytes`, counting what is stored already (and evicting down to
+    /// the bound if a smaller one was given than last time).
+    pub async fn bounded(pool: SqlitePool, max_bytes: u64) -> Result<Self, sqlx::Error> {
+        let used: i64 = sqlx::query("SELECT COALESCE(SUM(size), 0) FROM generated_tiles")
+            .fetch_one(&pool)
+            .await?
+            .get(0);
+        let store = Self {
+            max_bytes,
+            used: Arc::new(AtomicU64::new(u64::try_from(used).unwrap_or(0))),
+            ..Self::new(pool)
+        };
+        store.evict_if_over().await?;
+        Ok(store)
+    }
+
+    /// Bytes of stored tiles.
+    pub fn used_bytes(&self) -> u64 {
+        self.used.load(Ordering::Relaxed)
     }
 
     pub async fn get(
@@ -52,7 +98,7 @@ impl TileStore {
     ) -> Result<Option<StoredTile>, sqlx::Error> {
         let (scheme, region, z, x, y) = columns(key);
         let row = sqlx::query(
-            "SELECT bytes, etag FROM generated_tiles WHERE scheme = ? AND region = ? AND z = ? \
+            "SELECT bytes, etag, rowid FROM generated_tiles WHERE scheme = ? AND region = ? AND z = ? \
              AND x = ? AND y = ? AND encoding = ? AND roofs = ? AND data_version = ?",
         )
         .bind(scheme)
@@ -65,9 +111,16 @@ impl TileStore {
         .bind(data_version)
         .fetch_optional(&self.pool)
         .await?;
-        Ok(row.map(|r| StoredTile {
-            bytes: Bytes::from(r.get::<Vec<u8>, _>(0)),
-            etag: r.get(1),
+        let Some(row) = row else { return Ok(None) };
+        let rowid: i64 = row.get(2);
+        sqlx::query("UPDATE generated_tiles SET last_used = ? WHERE rowid = ?")
+            .bind(now_ms())
+            .bind(rowid)
+            .execute(&self.pool)
+            .await?;
+        Ok(Some(StoredTile {
+            bytes: Bytes::from(row.get::<Vec<u8>, _>(0)),
+            etag: row.get(1),
         }))
     }
 
@@ -80,13 +133,29 @@ impl TileStore {
     ) -> Result<(), sqlx::Error> {
         let (scheme, region, z, x, y) = columns(key);
         let b = key.tile.bounds();
-        let now = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_or(0, |d| d.as_secs() as i64);
+        let now = now_ms();
+        let replaced: Option<i64> = sqlx::query(
+            "DELETE FROM generated_tiles WHERE scheme = ? AND region = ? AND z = ? AND x = ? \
+             AND y = ? AND encoding = ? AND roofs = ? AND data_version = ? RETURNING size",
+        )
+        .bind(scheme)
+        .bind(&region)
+        .bind(z)
+        .bind(x)
+        .bind(y)
+        .bind(key.encoding.as_str())
+        .bind(key.roofs.as_str())
+        .bind(data_version)
+        .fetch_optional(&self.pool)
+        .await?
+        .map(|r| r.get(0));
+        if let Some(size) = replaced {
+            self.forget(size);
+        }
         sqlx::query(
             "INSERT OR REPLACE INTO generated_tiles (scheme, region, z, x, y, encoding, roofs, \
-             data_version, west, south, east, north, bytes, etag, created_at) \
-             VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+             data_version, west, south, east, north, bytes, etag, created_at, size, last_used) \
+             VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
         )
         .bind(scheme)
         .bind(region)
@@ -102,24 +171,77 @@ impl TileStore {
         .bind(b.max_lat())
         .bind(bytes)
         .bind(etag)
+        .bind(now / 1000)
+        .bind(bytes.len() as i64)
         .bind(now)
         .execute(&self.pool)
         .await?;
+        self.used.fetch_add(bytes.len() as u64, Ordering::Relaxed);
+        self.evict_if_over().await
+    }
+
+    fn forget(&self, size: i64) {
+        let size = u64::try_from(size).unwrap_or(0);
+        let _ = self
+            .used
+            .fetch_update(Ordering::Relaxed, Ordering::Relaxed, |u| {
+                Some(u.saturating_sub(size))
+            });
+    }
+
+    /// Past the bound, deletes the least recently used tiles down to 90 % of it.
+    async fn evict_if_over(&self) -> Result<(), sqlx::Error> {
+        if self.used_bytes() <= self.max_bytes {
+            return Ok(());
+        }
+        let _one = self.evicting.lock().await;
+        let target = (self.max_bytes as f64 * EVICT_TO) as u64;
+        let mut evicted = 0u64;
+        while self.used_bytes() > target {
+            let sizes: Vec<i64> = sqlx::query(
+                "DELETE FROM generated_tiles WHERE rowid IN (SELECT rowid FROM generated_tiles \
+                 ORDER BY last_used LIMIT ?) RETURNING size",
+            )
+            .bind(EVICT_BATCH)
+            .fetch_all(&self.pool)
+            .await?
+            .iter()
+            .map(|r| r.get(0))
+            .collect();
+            if sizes.is_empty() {
+                // Nothing left to evict: the count drifted; start again from zero.
+                self.used.store(0, Ordering::Relaxed);
+                break;
+            }
+            evicted += sizes.len() as u64;
+            sizes.into_iter().for_each(|s| self.forget(s));
+        }
+        tracing::debug!(
+            evicted,
+            used = self.used_bytes(),
+            "tile store evicted least recently used tiles"
+        );
         Ok(())
     }
 
     /// Deletes every stored tile (any scheme, encoding or version) whose ground overlaps `area`.
     pub async fn delete_overlapping(&self, area: &GeoBbox) -> Result<u64, sqlx::Error> {
-        Ok(sqlx::query(
-            "DELETE FROM generated_tiles WHERE west <= ? AND east >= ? AND south <= ? AND north >= ?",
+        let sizes: Vec<i64> = sqlx::query(
+            "DELETE FROM generated_tiles WHERE west <= ? AND east >= ? AND south <= ? AND north >= ? \
+             RETURNING size",
         )
         .bind(area.max_lon())
         .bind(area.min_lon())
         .bind(area.max_lat())
         .bind(area.min_lat())
-        .execute(&self.pool)
+        .fetch_all(&self.pool)
         .await?
-        .rows_affected())
+        .iter()
+        .map(|r| r.get(0))
+        .collect();
+        let removed = sizes.len() as u64;
+        sizes.into_iter().for_each(|s| self.forget(s));
+        Ok(removed)
     }
 
     /// Number of stored tiles.

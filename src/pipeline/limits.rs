@@ -39,3 +39,24 @@ pub async fn generation_slot(state: &AppState) -> Result<OwnedSemaphorePermit, A
     })?
     .map_err(AppError::internal)
 }
+
+/// Runs CPU work on the blocking pool under a generation slot and the request timeout. The slot
+/// goes with the work: if the client leaves (the request future is dropped), the work still
+/// holds its slot until it ends, so abandoned work never lets more run at once than there are
+/// slots; its cost is bounded by the limits on what a request may ask for.
+pub async fn run_blocking<T, F>(state: &AppState, work: F) -> Result<T, AppError>
+where
+    F: FnOnce() -> Result<T, AppError> + Send + 'static,
+    T: Send + 'static,
+{
+    within_timeout(state, async {
+        let slot = generation_slot(state).await?;
+        tokio::task::spawn_blocking(move || {
+            let result = work();
+            drop(slot);
+            result
+        })
+        .await?
+    })
+    .await
+}

@@ -10,5 +10,6 @@ mod scene;
 mod tiles3d;
 
 pub use crate::generation_stats::GenerationStats;
+pub use limits::run_blocking;
 pub use scene::{Buildings, Generated, generate};
 pub use tiles3d::{subtree, tileset_layout};

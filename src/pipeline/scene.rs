@@ -52,9 +52,11 @@ async fn generate_within(
             origin: "request".to_owned(),
         },
     };
-    let _slot = generation_slot(state).await?;
+    let slot = generation_slot(state).await?;
     let dem = state.dem.clone();
     let generated = tokio::task::spawn_blocking(move || {
+        // The slot goes with the work (see `limits::run_blocking`).
+        let _slot = slot;
         let started = Instant::now();
         let request: SceneRequest<'_> = area
             .request(&buildings.set)

@@ -1,7 +1,7 @@
 //! The 3D Tiles answers that are not meshes: the tree's layout over a region (for the tileset)
 //! and its binary subtree. Content tiles go through [`super::generate`].
 
-use super::limits::within_timeout;
+use super::limits::{run_blocking, within_timeout};
 use crate::error::AppError;
 use crate::state::AppState;
 use citymesh_core::geo::GeoBbox;
@@ -12,11 +12,11 @@ pub async fn tileset_layout(state: &AppState, root: GeoBbox) -> Result<ImplicitL
     within_timeout(state, async {
         let buildings = state.source.buildings(&root).await?;
         let dem = state.dem.clone();
-        Ok(tokio::task::spawn_blocking(move || {
+        run_blocking(state, move || {
             let model = dem.lookup(&root).model;
-            ImplicitLayout::measure(root, &model, &buildings.set)
+            Ok(ImplicitLayout::measure(root, &model, &buildings.set))
         })
-        .await?)
+        .await
     })
     .await
 }
@@ -26,12 +26,12 @@ pub async fn tileset_layout(state: &AppState, root: GeoBbox) -> Result<ImplicitL
 pub async fn subtree(state: &AppState, root: GeoBbox) -> Result<Vec<u8>, AppError> {
     within_timeout(state, async {
         let buildings = state.source.buildings(&root).await?;
-        Ok(tokio::task::spawn_blocking(move || {
+        run_blocking(state, move || {
             let leaf = ImplicitLayout::leaf_level_of(&root);
             let content = buildings.set.implicit_tiles_with_content(&root, leaf);
-            root_subtree(leaf, &content)
+            Ok(root_subtree(leaf, &content))
         })
-        .await?)
+        .await
     })
     .await
 }

@@ -1,6 +1,7 @@
 //! The headers of GLB answers: the content type and the `X-Citymesh-*` figures of a generation.
 
 use crate::generation_stats::GenerationStats;
+use crate::source::short_list;
 use axum::http::{HeaderMap, HeaderName, HeaderValue, header};
 
 /// The content type of binary glTF.
@@ -27,7 +28,7 @@ pub fn glb_headers(stats: Option<&GenerationStats>) -> HeaderMap {
     let ground = if s.missing_dem.is_empty() {
         "dem".to_owned()
     } else {
-        format!("flat-fallback; missing={}", s.missing_dem.join(","))
+        format!("flat-fallback; missing={}", short_list(&s.missing_dem))
     };
     put("x-citymesh-ground", ground);
     put("x-citymesh-osm", s.osm.clone());

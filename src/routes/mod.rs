@@ -4,6 +4,7 @@
 //! without its OpenAPI description.
 
 mod conditional;
+mod error_bodies;
 mod headers;
 mod health;
 mod metrics;
@@ -25,6 +26,7 @@ use tower_http::compression::CompressionLayer;
 use tower_http::compression::predicate::{NotForContentType, Predicate, SizeAbove};
 use tower_http::cors::{Any, CorsLayer};
 use tower_http::services::ServeDir;
+use tower_http::timeout::RequestBodyTimeoutLayer;
 use tower_http::trace::TraceLayer;
 use utoipa::OpenApi;
 use utoipa::openapi::OpenApi as OpenApiDocument;
@@ -141,6 +143,8 @@ pub fn app(state: AppState) -> Router {
         )
         .merge(SwaggerUi::new("/docs").url("/openapi.json", with_suffixes(doc)))
         .fallback(not_found)
+        .layer(RequestBodyTimeoutLayer::new(state.limits.body_timeout))
+        .layer(axum::middleware::from_fn(error_bodies::json_errors))
         .layer(axum::middleware::from_fn_with_state(
             state.clone(),
             metrics::track,

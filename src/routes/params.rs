@@ -1,6 +1,7 @@
 //! Query parameters shared by several routes, and their checks.
 
 use crate::error::AppError;
+use crate::state::Limits;
 use citymesh_core::geo::GeoBbox;
 use serde::Deserialize;
 use utoipa::IntoParams;
@@ -20,8 +21,10 @@ pub struct BboxQuery {
     pub bbox: Option<String>,
 }
 
-/// Checks a `bbox` parameter against the format and the area limit.
-pub fn parse_bbox(text: Option<&str>, max_km2: f64) -> Result<GeoBbox, AppError> {
+/// Checks a `bbox` parameter against the format, the area limit and the ground-cell limit (the
+/// ground's cost: a long thin box has a small area but many cells).
+pub fn parse_bbox(text: Option<&str>, limits: &Limits) -> Result<GeoBbox, AppError> {
+    let max_km2 = limits.max_bbox_km2;
     let text = text.ok_or_else(|| {
         AppError::bad_request(
             "missing_bbox",
@@ -40,5 +43,34 @@ pub fn parse_bbox(text: Option<&str>, max_km2: f64) -> Result<GeoBbox, AppError>
             ),
         ));
     }
+    let cells = ground_cells(&bbox);
+    if cells > limits.max_ground_cells {
+        return Err(AppError::bad_request(
+            "bbox_too_large",
+            format!(
+                "the bbox spans {cells} ground cells (1 arc-second), more than this server's limit of {}: request a smaller or squarer area, or tiles",
+                limits.max_ground_cells
+            ),
+        ));
+    }
     Ok(bbox)
+}
+
+/// Ground cells a box spans on the finest SRTM grid (1 arc-second), edges included.
+pub fn ground_cells(bbox: &GeoBbox) -> u64 {
+    let side = |degrees: f64| (degrees * 3600.0).ceil() as u64 + 1;
+    side(bbox.max_lon() - bbox.min_lon()).saturating_mul(side(bbox.max_lat() - bbox.min_lat()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ground_cells_count_both_sides() {
+        let b = GeoBbox::new(8.0, 49.0, 8.01, 49.002).unwrap();
+        assert_eq!(ground_cells(&b), 37 * 9);
+        let thin = GeoBbox::new(-180.0, 0.0, 180.0, 0.000_005).unwrap();
+        assert_eq!(ground_cells(&thin), (1_296_000 + 1) * 2);
+    }
 }

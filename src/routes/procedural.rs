@@ -6,7 +6,7 @@ use super::conditional::{conditional_response, generated_response};
 use super::schemas::GlbBytes;
 use crate::cache::etag_of;
 use crate::error::{AppError, ErrorBody};
-use crate::pipeline::{Buildings, generate};
+use crate::pipeline::{Buildings, generate, run_blocking};
 use crate::state::AppState;
 use axum::extract::rejection::QueryRejection;
 use axum::extract::{Query, State};
@@ -132,9 +132,10 @@ async fn city(
 ) -> Result<ProceduralCity, AppError> {
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
     let params = query.params(state.limits.max_bbox_km2)?;
-    tokio::task::spawn_blocking(move || generate_city(&params))
-        .await?
-        .map_err(|e| bad(e.to_string()))
+    run_blocking(state, move || {
+        generate_city(&params).map_err(|e| bad(e.to_string()))
+    })
+    .await
 }
 
 /// A procedural city's building definitions as GeoJSON.
@@ -191,7 +192,7 @@ pub async fn procedural_glb(
 ) -> Result<Response, AppError> {
     let city = city(&state, query).await?;
     let bbox = city.bbox;
-    let set = tokio::task::spawn_blocking(move || Arc::new(BuildingSet::new(city.records))).await?;
+    let set = run_blocking(&state, move || Ok(Arc::new(BuildingSet::new(city.records)))).await?;
     let generated = generate(&state, SceneArea::Given(bbox), Buildings::Given(set)).await?;
     Ok(generated_response(
         &request_headers,

@@ -97,7 +97,7 @@ fn negotiate(request: &HeaderMap) -> SceneFormat {
 
 /// Generates the box scene of a `bbox` parameter.
 async fn generate_box(state: &AppState, bbox: Option<&str>) -> Result<Generated, AppError> {
-    let bbox = parse_bbox(bbox, state.limits.max_bbox_km2)?;
+    let bbox = parse_bbox(bbox, &state.limits)?;
     generate(state, SceneArea::Bbox(bbox), Buildings::FromSource).await
 }
 

@@ -94,7 +94,7 @@ pub async fn scene_stats(
     query: Result<Query<BboxQuery>, QueryRejection>,
 ) -> Result<Json<SceneStats>, AppError> {
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
-    let bbox = parse_bbox(query.bbox.as_deref(), state.limits.max_bbox_km2)?;
+    let bbox = parse_bbox(query.bbox.as_deref(), &state.limits)?;
     let generated = generate(&state, SceneArea::Bbox(bbox), Buildings::FromSource).await?;
     Ok(Json(SceneStats::of(&generated)))
 }

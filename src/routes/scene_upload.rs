@@ -5,7 +5,7 @@
 use super::conditional::generated_response;
 use super::schemas::GlbBytes;
 use crate::error::{AppError, ErrorBody};
-use crate::pipeline::{Buildings, generate};
+use crate::pipeline::{Buildings, generate, run_blocking};
 use crate::state::AppState;
 use axum::body::Body;
 use axum::extract::State;
@@ -60,8 +60,11 @@ pub async fn post_scene(
         .get(header::CONTENT_TYPE)
         .and_then(|v| v.to_str().ok())
         .unwrap_or("");
+    // Media types are case-insensitive.
     let mime = content_type.split(';').next().unwrap_or("").trim();
-    if mime != "application/geo+json" && mime != "application/json" {
+    if !mime.eq_ignore_ascii_case("application/geo+json")
+        && !mime.eq_ignore_ascii_case("application/json")
+    {
         return Err(document(
             StatusCode::UNSUPPORTED_MEDIA_TYPE,
             "unsupported_media_type",
@@ -82,9 +85,8 @@ pub async fn post_scene(
         )
     })?;
     let limits = state.geojson_limits;
-    let scene = tokio::task::spawn_blocking(move || read_geojson(&bytes, limits))
-        .await?
-        .map_err(|e| {
+    let scene = run_blocking(&state, move || {
+        read_geojson(&bytes, limits).map_err(|e| {
             let (status, code) = match e.kind {
                 GeoJsonErrorKind::TooLarge => (StatusCode::PAYLOAD_TOO_LARGE, "too_large"),
                 GeoJsonErrorKind::NotJson => (StatusCode::UNPROCESSABLE_ENTITY, "not_json"),
@@ -97,7 +99,9 @@ pub async fn post_scene(
                 feature: e.feature,
                 field: Some(e.field),
             }
-        })?;
+        })
+    })
+    .await?;
     if scene.records.is_empty() {
         return Err(document(
             StatusCode::UNPROCESSABLE_ENTITY,
@@ -125,8 +129,10 @@ pub async fn post_scene(
             ),
         ));
     }
-    let set =
-        tokio::task::spawn_blocking(move || Arc::new(BuildingSet::new(scene.records))).await?;
+    let set = run_blocking(&state, move || {
+        Ok(Arc::new(BuildingSet::new(scene.records)))
+    })
+    .await?;
     let generated = generate(&state, SceneArea::Given(bbox), Buildings::Given(set)).await?;
     Ok(generated_response(&request_headers, generated, "no-store"))
 }

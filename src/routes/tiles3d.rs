@@ -32,7 +32,7 @@ pub struct TilesetQuery {
 /// The tree's root: the `bbox` given, else the extent of the served buildings.
 fn root_for(state: &AppState, text: Option<&str>) -> Result<GeoBbox, AppError> {
     if let Some(t) = text {
-        return parse_bbox(Some(t), state.limits.max_bbox_km2);
+        return parse_bbox(Some(t), &state.limits);
     }
     state.source.extent().ok_or_else(|| {
         AppError::bad_request(
@@ -51,7 +51,7 @@ fn implicit_request(
 ) -> Result<(GeoBbox, ImplicitTile), AppError> {
     let Path((bbox, level, x, y)) =
         path.map_err(|e| AppError::bad_request("invalid_tile", e.body_text()))?;
-    let root = parse_bbox(Some(&bbox), state.limits.max_bbox_km2)?;
+    let root = parse_bbox(Some(&bbox), &state.limits)?;
     Ok((root, parse_implicit(&level, &x, &y, ext)?))
 }
 

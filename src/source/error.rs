@@ -8,6 +8,11 @@ pub enum SourceError {
     /// The upstream (Overpass) failed, timed out or is rate limiting.
     #[error(transparent)]
     Upstream(#[from] OverpassError),
+    /// The area needs more data tiles than one request may load.
+    #[error(
+        "the area needs {tiles} OSM data tiles, more than {max} per request: request a smaller or squarer area, or tiles"
+    )]
+    AreaTooLarge { tiles: usize, max: usize },
     /// The data-tile store (SQLite) failed.
     #[error("OSM data store: {0}")]
     Store(String),

@@ -64,3 +64,16 @@ pub trait BuildingSource: Send + Sync {
 /// Capacity of a source's change announcements; a subscriber that falls further behind drops
 /// everything it cached (see `crate::cache::invalidation`).
 pub const CHANGE_CAPACITY: usize = 256;
+
+/// At most eight names, then how many more: lists that end up in response headers stay short.
+pub fn short_list(names: &[String]) -> String {
+    const LISTED: usize = 8;
+    if names.len() <= LISTED {
+        return names.join(",");
+    }
+    format!(
+        "{},... ({} more)",
+        names[..LISTED].join(","),
+        names.len() - LISTED
+    )
+}

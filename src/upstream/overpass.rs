@@ -15,6 +15,9 @@ pub const DEFAULT_OVERPASS_URL: &str = "https://overpass-api.de/api/interpreter"
 /// Longest wait between retries, whatever `Retry-After` says.
 const MAX_BACKOFF: Duration = Duration::from_secs(30);
 
+/// Longest `Retry-After` taken from upstream (and so passed on to clients).
+pub const MAX_RETRY_AFTER: Duration = Duration::from_secs(120);
+
 /// How the client behaves.
 #[derive(Debug, Clone)]
 pub struct OverpassConfig {
@@ -28,23 +31,31 @@ pub struct OverpassConfig {
     pub backoff: Duration,
     /// Requests in flight at most.
     pub max_concurrent: usize,
+    /// Largest answer accepted, bytes.
+    pub max_bytes: u64,
 }
 
 /// Why Overpass gave no data. Each maps to the status a client of citymesh sees.
 #[derive(Debug, Clone, thiserror::Error)]
 pub enum OverpassError {
     /// Overpass asked us to slow down (429) or is overloaded (503): answer 503.
-    #[error("Overpass is rate limiting or overloaded (HTTP {status})")]
+    #[error("the OpenStreetMap upstream is rate limiting or overloaded (HTTP {status})")]
     Busy {
         status: u16,
         retry_after: Option<Duration>,
     },
     /// No complete answer in time: answer 504.
-    #[error("Overpass did not answer within {0:?}")]
+    #[error("the OpenStreetMap upstream did not answer within {} s", .0.as_secs_f64())]
     Timeout(Duration),
+    /// Upstream itself reported a gateway timeout (HTTP 504): answer 504.
+    #[error("the OpenStreetMap upstream reported a gateway timeout (HTTP 504)")]
+    GatewayTimeout,
+    /// The answer is larger than `--overpass-max-mb`: answer 502, store nothing.
+    #[error("the OpenStreetMap upstream sent more than {limit_mb} MB (--overpass-max-mb)")]
+    TooLarge { limit_mb: u64 },
     /// An error status, a broken connection, or a body that is not complete Overpass JSON:
     /// answer 502.
-    #[error("Overpass failed: {0}")]
+    #[error("the OpenStreetMap upstream failed: {0}")]
     Bad(String),
 }
 
@@ -53,7 +64,8 @@ impl OverpassError {
     pub fn kind(&self) -> &'static str {
         match self {
             OverpassError::Busy { .. } => "busy",
-            OverpassError::Timeout(_) => "timeout",
+            OverpassError::Timeout(_) | OverpassError::GatewayTimeout => "timeout",
+            OverpassError::TooLarge { .. } => "too_large",
             OverpassError::Bad(_) => "bad_response",
         }
     }
@@ -121,7 +133,9 @@ impl OverpassClient {
             };
             let retry = matches!(
                 error,
-                OverpassError::Busy { .. } | OverpassError::Timeout(_)
+                OverpassError::Busy { .. }
+                    | OverpassError::Timeout(_)
+                    | OverpassError::GatewayTimeout
             ) || matches!(&error, OverpassError::Bad(m) if m.starts_with("HTTP 5"));
             if !retry || attempt >= self.config.retries {
                 return Err(error);
@@ -142,14 +156,15 @@ impl OverpassClient {
 
     async fn once(&self, url: &str, query: &str) -> Result<Vec<u8>, OverpassError> {
         let timeout = self.config.timeout;
+        // The URL may carry a key: errors never name it.
         let classify = |e: reqwest::Error| {
             if e.is_timeout() {
                 OverpassError::Timeout(timeout)
             } else {
-                OverpassError::Bad(format!("{url}: {e}"))
+                OverpassError::Bad(e.without_url().to_string())
             }
         };
-        let response = self
+        let mut response = self
             .http
             .post(url)
             .form(&[("data", query)])
@@ -163,31 +178,63 @@ impl OverpassClient {
                 .get(reqwest::header::RETRY_AFTER)
                 .and_then(|v| v.to_str().ok())
                 .and_then(|v| v.trim().parse::<u64>().ok())
-                .map(Duration::from_secs);
+                .map(|s| Duration::from_secs(s).min(MAX_RETRY_AFTER));
             return Err(OverpassError::Busy {
                 status: status.as_u16(),
                 retry_after,
             });
         }
         if status == StatusCode::GATEWAY_TIMEOUT {
-            return Err(OverpassError::Timeout(timeout));
+            return Err(OverpassError::GatewayTimeout);
         }
         if !status.is_success() {
             return Err(OverpassError::Bad(format!("HTTP {}", status.as_u16())));
         }
-        let body = response.bytes().await.map_err(classify)?;
+        let limit = self.config.max_bytes;
+        let too_large = OverpassError::TooLarge {
+            limit_mb: limit >> 20,
+        };
+        if response.content_length().is_some_and(|n| n > limit) {
+            return Err(too_large);
+        }
+        // Counted while streaming: a lying or missing Content-Length cannot get past the limit.
+        let mut body = Vec::new();
+        while let Some(chunk) = response.chunk().await.map_err(classify)? {
+            if body.len() as u64 + chunk.len() as u64 > limit {
+                return Err(too_large);
+            }
+            body.extend_from_slice(&chunk);
+        }
         check_complete(&body)?;
-        Ok(body.to_vec())
+        Ok(body)
     }
 }
 
-/// Accepts only a whole JSON document with an `elements` array and no runtime error remark
-/// (Overpass reports timeouts and memory exhaustion inside a 200 answer).
+/// Accepts only a whole JSON document with an `elements` array, no runtime error remark
+/// (Overpass reports timeouts and memory exhaustion inside a 200 answer), and every way a
+/// relation names and every node a way names present (`out body; >; out skel qt;` sends them all;
+/// a gap means the answer was cut).
 pub fn check_complete(body: &[u8]) -> Result<(), OverpassError> {
     #[derive(serde::Deserialize)]
+    struct Member {
+        #[serde(rename = "type")]
+        kind: String,
+        #[serde(rename = "ref")]
+        id: i64,
+    }
+    #[derive(serde::Deserialize)]
+    struct Element {
+        #[serde(rename = "type")]
+        kind: String,
+        id: i64,
+        #[serde(default)]
+        nodes: Vec<i64>,
+        #[serde(default)]
+        members: Vec<Member>,
+    }
+    #[derive(serde::Deserialize)]
     struct Shape {
-        #[serde(rename = "elements")]
-        _elements: serde::de::IgnoredAny,
+        elements: Vec<Element>,
         #[serde(default)]
         remark: Option<String>,
     }
@@ -199,6 +246,36 @@ pub fn check_complete(body: &[u8]) -> Result<(), OverpassError> {
     })?;
     if let Some(remark) = shape.remark.filter(|r| r.contains("error")) {
         return Err(OverpassError::Bad(format!("Overpass reported: {remark}")));
+    }
+    let ids = |kind: &str| -> std::collections::HashSet<i64> {
+        shape
+            .elements
+            .iter()
+            .filter(|e| e.kind == kind)
+            .map(|e| e.id)
+            .collect()
+    };
+    let (nodes, ways) = (ids("node"), ids("way"));
+    for e in &shape.elements {
+        let missing = match e.kind.as_str() {
+            "way" => e
+                .nodes
+                .iter()
+                .find(|n| !nodes.contains(n))
+                .map(|n| format!("node {n}")),
+            "relation" => e
+                .members
+                .iter()
+                .find(|m| m.kind == "way" && !ways.contains(&m.id))
+                .map(|m| format!("way {}", m.id)),
+            _ => None,
+        };
+        if let Some(what) = missing {
+            return Err(OverpassError::Bad(format!(
+                "the answer is incomplete: {} {} names {what}, which it does not contain",
+                e.kind, e.id
+            )));
+        }
     }
     Ok(())
 }
@@ -226,5 +303,14 @@ mod tests {
                 .is_err()
         );
         assert!(check_complete(b"<html>502 Bad Gateway</html>").is_err());
+        // A relation whose member way is missing, a way whose node is missing.
+        let relation = br#"{"elements": [{"type": "relation", "id": 5, "members":
+            [{"type": "way", "ref": 7, "role": "outer"}]}]}"#;
+        let e = check_complete(relation).unwrap_err().to_string();
+        assert!(e.contains("relation 5 names way 7"), "{e}");
+        let way = br#"{"elements": [{"type": "node", "id": 1, "lat": 0, "lon": 0},
+            {"type": "way", "id": 7, "nodes": [1, 2, 1]}]}"#;
+        let e = check_complete(way).unwrap_err().to_string();
+        assert!(e.contains("way 7 names node 2"), "{e}");
     }
 }

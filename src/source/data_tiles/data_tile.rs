@@ -11,6 +11,10 @@ use citymesh_core::geo::{GeoBbox, TileCoord};
 /// The zoom of data tiles.
 pub const DATA_ZOOM: u8 = 14;
 
+/// Most data tiles one request may need: a square of the largest default area (25 km²) needs at
+/// most 25 with its margin; longer boxes would make one request cost many upstream calls.
+pub const MAX_DATA_TILES: usize = 36;
+
 /// How far (degrees, about 200 m) around an area data is loaded, so buildings and groups of
 /// buildings reaching over a tile edge are complete.
 pub const MARGIN_DEGREES: f64 = 0.002;

@@ -10,13 +10,13 @@ mod store;
 
 pub use store::{DataOrigin, OsmTileStore, StoredDataTile, content_hash};
 
-use super::{AreaBuildings, BuildingSource, CHANGE_CAPACITY, DataChanged, SourceError};
+use super::{AreaBuildings, BuildingSource, CHANGE_CAPACITY, DataChanged, SourceError, short_list};
 use crate::metrics::{Metrics, UpstreamLabels};
 use crate::upstream::{OverpassClient, OverpassError};
 use citymesh_core::building::set::BuildingSet;
 use citymesh_core::geo::{GeoBbox, TileCoord};
 use citymesh_core::osm::{BuildingRecord, read_buildings};
-use data_tile::{affected_area, data_tiles_for};
+use data_tile::{MAX_DATA_TILES, affected_area, data_tiles_for};
 use futures_util::future::BoxFuture;
 use std::collections::HashSet;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -77,6 +77,12 @@ impl DataTileSource {
 
     async fn area(&self, bbox: &GeoBbox) -> Result<AreaBuildings, SourceError> {
         let keys = data_tiles_for(bbox);
+        if keys.len() > MAX_DATA_TILES {
+            return Err(SourceError::AreaTooLarge {
+                tiles: keys.len(),
+                max: MAX_DATA_TILES,
+            });
+        }
         let parsed =
             futures_util::future::try_join_all(keys.iter().map(|t| self.data_tile(*t))).await?;
         let missing: Vec<String> = keys
@@ -109,7 +115,7 @@ impl DataTileSource {
         } else {
             format!(
                 "missing={} (offline: no buildings there)",
-                missing.join(",")
+                short_list(&missing)
             )
         };
         Ok(AreaBuildings { set, origin })

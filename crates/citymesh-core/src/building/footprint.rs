@@ -5,11 +5,18 @@
 //! Every point keeps a [`NodeKey`], so two buildings that share OSM nodes can find the walls they
 //! share (docs/method.md section 7).
 
+use super::sweep::{any_overlapping_pair, segment_bounds};
+
 /// Points closer than this (metres) are one point.
 pub const MERGE_DISTANCE: f64 = 1e-3;
 
 /// Footprints with less area (m²) are not buildings.
 pub const MIN_AREA: f64 = 0.05;
+
+/// Most vertices a ring may have. OpenStreetMap caps a way at 2,000 nodes; an outline over twice
+/// that is refused (`too_many_nodes`) rather than checked at a cost that grows with its square
+/// in the worst case.
+pub const MAX_RING_VERTICES: usize = 4_000;
 
 /// What identifies a footprint point across buildings: its OSM node id, or where the source gives
 /// no ids, its exact projected coordinates.
@@ -44,6 +51,8 @@ pub enum FootprintError {
     SelfIntersecting,
     #[error("a coordinate is not a finite number")]
     NotFinite,
+    #[error("a ring has more than {MAX_RING_VERTICES} vertices")]
+    TooManyVertices,
 }
 
 /// A cleaned footprint: the outer ring counter-clockwise, courtyards clockwise, in metres.
@@ -147,15 +156,11 @@ impl FootprintRing {
         let edges: Vec<_> = (0..n)
             .map(|i| (self.points[i], self.points[(i + 1) % n]))
             .collect();
-        for i in 0..n {
-            for j in i + 1..n {
-                let adjacent = j == i + 1 || (i == 0 && j == n - 1);
-                if segments_touch(edges[i], edges[j], adjacent) {
-                    return true;
-                }
-            }
-        }
-        false
+        let boxes: Vec<_> = edges.iter().map(|&(a, b)| segment_bounds(a, b)).collect();
+        any_overlapping_pair(&boxes, |i, j| {
+            let adjacent = j == i + 1 || (i == 0 && j == n - 1);
+            segments_touch(edges[i], edges[j], adjacent)
+        })
     }
 }
 
@@ -173,6 +178,12 @@ impl Footprint {
             .any(|p| !p[0].is_finite() || !p[1].is_finite())
         {
             return Err(FootprintError::NotFinite);
+        }
+        if std::iter::once(&outer)
+            .chain(&holes)
+            .any(|r| r.points.len() > MAX_RING_VERTICES)
+        {
+            return Err(FootprintError::TooManyVertices);
         }
         outer.clean();
         if outer.len() < 3 {
@@ -349,10 +360,16 @@ fn segments_touch(
 }
 
 fn rings_touch(x: &FootprintRing, y: &FootprintRing) -> bool {
-    let (n, m) = (x.len(), y.len());
-    (0..n).any(|i| {
-        let e = (x.points[i], x.points[(i + 1) % n]);
-        (0..m).any(|j| segments_touch(e, (y.points[j], y.points[(j + 1) % m]), false))
+    fn edges(r: &FootprintRing) -> impl Iterator<Item = ([f64; 2], [f64; 2])> + '_ {
+        let n = r.len();
+        (0..n).map(move |i| (r.points[i], r.points[(i + 1) % n]))
+    }
+    let from_x = x.len();
+    let all: Vec<_> = edges(x).chain(edges(y)).collect();
+    let boxes: Vec<_> = all.iter().map(|&(a, b)| segment_bounds(a, b)).collect();
+    // Only pairs with one edge from each ring.
+    any_overlapping_pair(&boxes, |i, j| {
+        i < from_x && j >= from_x && segments_touch(all[i], all[j], false)
     })
 }
 

@@ -161,6 +161,7 @@ fn footprint_reason(e: FootprintError) -> &'static str {
         FootprintError::NoArea => "no_area",
         FootprintError::SelfIntersecting => "self_intersecting",
         FootprintError::NotFinite => "not_finite",
+        FootprintError::TooManyVertices => "too_many_nodes",
     }
 }
 

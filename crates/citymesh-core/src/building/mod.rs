@@ -20,6 +20,7 @@ pub mod roof;
 pub mod roof_surface;
 pub mod set;
 pub mod stats;
+mod sweep;
 pub mod tags;
 pub mod triangulate;
 pub mod walls;

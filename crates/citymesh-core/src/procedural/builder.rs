@@ -45,10 +45,11 @@ impl Rect {
     }
 }
 
-/// Picks an index with probability proportional to its weight; `None` when all are zero.
+/// Picks an index with probability proportional to its weight; `None` when all are zero (or the
+/// weights do not sum to a finite number, which [`super::ProceduralParams::validate`] refuses).
 pub fn weighted(rng: &mut ChaCha8Rng, weights: &[f64]) -> Option<usize> {
     let total: f64 = weights.iter().sum();
-    if total <= 0.0 {
+    if !(total > 0.0 && total.is_finite()) {
         return None;
     }
     let mut pick = rng.random_range(0.0..total);

@@ -104,6 +104,10 @@ pub enum ParamError {
     Complexity { value: u32, max: u32 },
     #[error("weight of '{name}' must be a finite number >= 0, got {value}")]
     Weight { name: String, value: f64 },
+    #[error(
+        "the {what} weights add up to {sum}, which is not a finite number: use smaller weights"
+    )]
+    WeightSum { what: &'static str, sum: f64 },
     #[error("lon must be within -180..180 and lat within -85..85, got {lon}, {lat}")]
     Location { lon: f64, lat: f64 },
 }
@@ -144,6 +148,12 @@ impl ProceduralParams {
                     name: name.to_owned(),
                     value,
                 });
+            }
+        }
+        for (what, weights) in [("layout", &self.layouts[..]), ("roof", &self.roofs[..])] {
+            let sum: f64 = weights.iter().sum();
+            if !sum.is_finite() {
+                return Err(ParamError::WeightSum { what, sum });
             }
         }
         if !(self.lon.is_finite()

@@ -1,5 +1,10 @@
-//! Start-up and shutdown: logging, the database, the DEM store, the listener, and a graceful stop
+//! Start-up and shutdown: logging, the database, the DEM store, the building source, the caches,
+//! the listener ([`connections`]: limits on connections and their timeouts), and a graceful stop
 //! on SIGINT or SIGTERM.
+
+mod connections;
+
+pub use connections::ConnectionLimits;
 
 use crate::cache::{TileCache, TileStore, invalidation};
 use crate::cli::ServeArgs;
@@ -37,9 +42,23 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         args.overpass_timeout_s > 0.0 && args.overpass_timeout_s.is_finite(),
         "--overpass-timeout-s must be a positive number of seconds"
     );
+    for (flag, value) in [
+        ("--request-timeout-s", args.request_timeout_s),
+        ("--header-timeout-s", args.header_timeout_s),
+        ("--body-timeout-s", args.body_timeout_s),
+        ("--idle-timeout-s", args.idle_timeout_s),
+    ] {
+        anyhow::ensure!(
+            value > 0.0 && value.is_finite() && value < 1e9,
+            "{flag} must be a positive number of seconds"
+        );
+    }
     anyhow::ensure!(
-        args.request_timeout_s > 0.0 && args.request_timeout_s.is_finite(),
-        "--request-timeout-s must be a positive number of seconds"
+        args.idle_timeout_s > args.request_timeout_s,
+        "--idle-timeout-s ({}) must be longer than --request-timeout-s ({}): a connection waiting \
+         for its answer is silent meanwhile",
+        args.idle_timeout_s,
+        args.request_timeout_s
     );
     let overpass_urls = args
         .overpass_url
@@ -94,6 +113,7 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
                     retries: args.overpass_retries,
                     backoff: Duration::from_secs(1),
                     max_concurrent: args.overpass_max_concurrent,
+                    max_bytes: args.overpass_max_mb.saturating_mul(1 << 20),
                 })?))
             };
             DataTileSource::new(
@@ -110,8 +130,10 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         dem.fingerprint(),
         source.fingerprint()
     );
+    let store =
+        TileStore::bounded(pool.clone(), args.tile_store_mb.saturating_mul(1 << 20)).await?;
     let tiles = Arc::new(TileCache::new(
-        TileStore::new(pool.clone()),
+        store,
         args.tile_cache_mb.saturating_mul(1 << 20),
         data_version,
         metrics.clone(),
@@ -136,10 +158,12 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         assets_dir: args.assets_dir.clone(),
         limits: Limits {
             max_bbox_km2: args.max_bbox_km2,
+            max_ground_cells: args.max_ground_cells,
             min_zoom: args.min_zoom,
             max_zoom: args.max_zoom,
             generation_wait: Duration::from_millis(args.generation_wait_ms),
             request_timeout: Duration::from_secs_f64(args.request_timeout_s),
+            body_timeout: Duration::from_secs_f64(args.body_timeout_s),
         },
     })
 }
@@ -173,9 +197,18 @@ pub async fn run(args: ServeArgs) -> anyhow::Result<()> {
             citymesh_core::procedural::DEFAULT_LAT
         );
     }
-    axum::serve(listener, crate::routes::app(state))
-        .with_graceful_shutdown(shutdown_signal())
-        .await?;
+    let limits = ConnectionLimits {
+        max_connections: args.max_connections.max(1),
+        header_timeout: Duration::from_secs_f64(args.header_timeout_s),
+        idle_timeout: Duration::from_secs_f64(args.idle_timeout_s),
+    };
+    connections::serve(
+        listener,
+        crate::routes::app(state),
+        limits,
+        shutdown_signal(),
+    )
+    .await;
     tracing::info!("stopped");
     Ok(())
 }

@@ -1,0 +1,112 @@
+//! Every error a client sees has the JSON error body: answers made outside the handlers (axum's
+//! 405, a static file's 404, a timed-out body's 408, ...) get one here, and over-long URIs and
+//! header blocks are refused with one before anything else runs.
+
+use crate::error::ErrorBody;
+use axum::Json;
+use axum::extract::Request;
+use axum::http::{HeaderMap, StatusCode, header};
+use axum::middleware::Next;
+use axum::response::{IntoResponse, Response};
+
+/// Longest request target accepted, bytes.
+pub const MAX_URI_BYTES: usize = 8 * 1024;
+/// Largest header block accepted (names and values), bytes.
+pub const MAX_HEADER_BYTES: usize = 32 * 1024;
+
+fn json_error(status: StatusCode, code: &str, detail: String) -> Response {
+    (
+        status,
+        Json(ErrorBody {
+            error: code.to_owned(),
+            detail,
+            feature: None,
+            field: None,
+        }),
+    )
+        .into_response()
+}
+
+fn header_bytes(headers: &HeaderMap) -> usize {
+    headers
+        .iter()
+        .map(|(k, v)| k.as_str().len() + v.len() + 4)
+        .sum()
+}
+
+/// Refuses over-long requests, and gives every error answer without a JSON body one.
+pub async fn json_errors(request: Request, next: Next) -> Response {
+    let uri_len = request.uri().to_string().len();
+    if uri_len > MAX_URI_BYTES {
+        return json_error(
+            StatusCode::URI_TOO_LONG,
+            "uri_too_long",
+            format!(
+                "the request target has {uri_len} bytes, more than {MAX_URI_BYTES}: shorten the query"
+            ),
+        );
+    }
+    let headers = header_bytes(request.headers());
+    if headers > MAX_HEADER_BYTES {
+        return json_error(
+            StatusCode::REQUEST_HEADER_FIELDS_TOO_LARGE,
+            "headers_too_large",
+            format!(
+                "the request headers have {headers} bytes, more than {MAX_HEADER_BYTES}: send fewer or shorter headers"
+            ),
+        );
+    }
+    let (method, path) = (request.method().clone(), request.uri().path().to_owned());
+    let response = next.run(request).await;
+    let status = response.status();
+    let is_json = response
+        .headers()
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|t| t.starts_with("application/json"));
+    if !(status.is_client_error() || status.is_server_error()) || is_json {
+        return response;
+    }
+    let (code, detail) = match status {
+        StatusCode::NOT_FOUND => (
+            "not_found",
+            format!("nothing is served at {path}; see /docs for the API"),
+        ),
+        StatusCode::METHOD_NOT_ALLOWED => {
+            let allowed = response
+                .headers()
+                .get(header::ALLOW)
+                .and_then(|v| v.to_str().ok())
+                .unwrap_or("")
+                .to_owned();
+            (
+                "method_not_allowed",
+                format!("{path} does not answer {method}; it answers {allowed}"),
+            )
+        }
+        StatusCode::REQUEST_TIMEOUT => (
+            "timeout",
+            "the request body did not arrive in time (--body-timeout-s)".to_owned(),
+        ),
+        StatusCode::PAYLOAD_TOO_LARGE => (
+            "too_large",
+            "the request body is over this server's limit".to_owned(),
+        ),
+        _ => (
+            "error",
+            format!(
+                "{} {}",
+                status.as_u16(),
+                status.canonical_reason().unwrap_or("error")
+            ),
+        ),
+    };
+    // Keep what the client needs (Allow, Retry-After, CORS); replace the body.
+    let mut answer = json_error(status, code, detail);
+    for (name, value) in response.headers() {
+        if name != header::CONTENT_TYPE && name != header::CONTENT_LENGTH {
+            answer.headers_mut().insert(name.clone(), value.clone());
+        }
+    }
+    answer
+}
