@@ -178,6 +178,22 @@ async fn interpreter(
                 k += usize::from(building);
                 !building || k % 2 == 0
             });
+            // A consistent answer: relations whose member ways are gone go too.
+            let ways: HashSet<i64> = doc["elements"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .filter(|e| e["type"] == "way")
+                .map(|e| e["id"].as_i64().unwrap())
+                .collect();
+            doc["elements"].as_array_mut().unwrap().retain(|e| {
+                e["type"] != "relation"
+                    || e["members"]
+                        .as_array()
+                        .unwrap()
+                        .iter()
+                        .all(|m| m["type"] != "way" || ways.contains(&m["ref"].as_i64().unwrap()))
+            });
             serde_json::to_vec(&doc).unwrap().into_response()
         }
     }

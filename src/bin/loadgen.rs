@@ -74,7 +74,13 @@ async fn connection(
     let mut body = vec![0u8; 0];
     let mut line = String::new();
     while Instant::now() < deadline {
-        if budget.fetch_sub(1, std::sync::atomic::Ordering::Relaxed) == 0 {
+        // Take one request from the budget; never below zero, so it bounds all connections.
+        let taken = budget.fetch_update(
+            std::sync::atomic::Ordering::Relaxed,
+            std::sync::atomic::Ordering::Relaxed,
+            |left| left.checked_sub(1),
+        );
+        if taken.is_err() {
             break;
         }
         let started = Instant::now();

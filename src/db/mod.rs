@@ -13,10 +13,29 @@ pub async fn open(location: &str) -> anyhow::Result<SqlitePool> {
     let options = if memory {
         SqliteConnectOptions::from_str("sqlite::memory:")?
     } else {
-        if let Some(parent) = std::path::Path::new(location).parent()
+        let path = std::path::Path::new(location);
+        if let Some(parent) = path.parent()
             && !parent.as_os_str().is_empty()
         {
-            std::fs::create_dir_all(parent)?;
+            if let Some(file) = parent.ancestors().find(|a| a.is_file()) {
+                anyhow::bail!(
+                    "{} is a file, so the cache database {location} cannot be created under it: \
+                     pass --cache-db a path in a folder",
+                    file.display()
+                );
+            }
+            std::fs::create_dir_all(parent).map_err(|e| {
+                anyhow::anyhow!(
+                    "cannot create the folder {} for the cache database ({e}): check it is \
+                     writable by this user, or pass --cache-db another path",
+                    parent.display()
+                )
+            })?;
+        }
+        if path.is_dir() {
+            anyhow::bail!(
+                "{location} is a folder: pass --cache-db a file path, e.g. {location}/citymesh.sqlite"
+            );
         }
         SqliteConnectOptions::new()
             .filename(location)
@@ -30,7 +49,13 @@ pub async fn open(location: &str) -> anyhow::Result<SqlitePool> {
         .idle_timeout(None)
         .max_lifetime(None)
         .connect_with(options)
-        .await?;
+        .await
+        .map_err(|e| {
+            anyhow::anyhow!(
+                "cannot open the cache database {location} ({e}): check that this user may read \
+                 and write it and its folder (permissions), or pass --cache-db another path"
+            )
+        })?;
     sqlx::migrate!("./migrations").run(&pool).await?;
     Ok(pool)
 }

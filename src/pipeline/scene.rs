@@ -47,10 +47,7 @@ async fn generate_within(
         .map_err(|e| AppError::bad_request("invalid_tile", e.to_string()))?;
     let buildings = match buildings {
         Buildings::FromSource => state.source.buildings(&bbox).await?,
-        Buildings::Given(set) => AreaBuildings {
-            set,
-            origin: "request".to_owned(),
-        },
+        Buildings::Given(set) => AreaBuildings::given(set),
     };
     let slot = generation_slot(state).await?;
     let dem = state.dem.clone();
@@ -69,7 +66,26 @@ async fn generate_within(
         }
         // Whole buildings may reach past the box: their ground must be loaded too.
         let lookup = dem.lookup(&request.terrain_bbox());
-        let output = request.generate(&lookup.model);
+        let mut output = request.generate(&lookup.model);
+        // What the data had but could not be built, and what was built with less.
+        for skip in &buildings.load_skips {
+            output.buildings.skip(skip.id, skip.reason.name());
+        }
+        if !buildings.repaired.is_empty() {
+            // Repairs of the records this scene used (drawn, or drawn through their parts).
+            let used: std::collections::HashSet<_> = request
+                .groups
+                .iter()
+                .flat_map(|c| buildings.set.cluster_records(c))
+                .map(|r| r.id)
+                .collect();
+            output.buildings.repaired_ids = buildings
+                .repaired
+                .iter()
+                .filter(|r| used.contains(&r.id))
+                .map(|r| (r.id.to_string(), r.what))
+                .collect();
+        }
         let stats = GenerationStats {
             generation_ms: started.elapsed().as_secs_f64() * 1e3,
             vertices: output.glb.vertices,

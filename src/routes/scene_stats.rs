@@ -39,8 +39,13 @@ pub struct BuildingFigures {
     pub parts: usize,
     /// Buildings skipped, by reason (e.g. `self_intersecting`).
     pub skipped: BTreeMap<String, usize>,
-    /// The skipped buildings (`way/123`, `relation/45`) with their reason.
+    /// The skipped buildings (`way/123`, `relation/45`) with their reason: those the generator
+    /// could not build, and those the data near the box has but that could not be read into a
+    /// building at all (e.g. `missing_nodes`).
     pub skipped_ids: Vec<SkippedBuilding>,
+    /// Buildings generated with less than the data describes, e.g. `missing_inner_ring` (a
+    /// courtyard missing from the data: the outline is drawn without it).
+    pub repaired_ids: Vec<RepairedBuilding>,
     /// Generated roofs per shape.
     pub roof_shapes: BTreeMap<String, usize>,
     /// Roof shapes from a `roof:shape` tag, by default (no tag: flat), and tags naming a shape
@@ -64,6 +69,13 @@ pub struct BuildingFigures {
 pub struct SkippedBuilding {
     pub id: String,
     pub reason: String,
+}
+
+#[derive(Debug, Serialize, ToSchema)]
+pub struct RepairedBuilding {
+    pub id: String,
+    /// What was left out.
+    pub what: String,
 }
 
 #[derive(Debug, Serialize, ToSchema)]
@@ -125,6 +137,14 @@ impl SceneStats {
                     .map(|(id, reason)| SkippedBuilding {
                         id: id.clone(),
                         reason: (*reason).to_owned(),
+                    })
+                    .collect(),
+                repaired_ids: b
+                    .repaired_ids
+                    .iter()
+                    .map(|(id, what)| RepairedBuilding {
+                        id: id.clone(),
+                        what: (*what).to_owned(),
                     })
                     .collect(),
                 roof_shapes: b

@@ -96,7 +96,8 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         tracing::info!(
             buildings = data.set.records().len(),
             clusters = data.set.clusters().len(),
-            skipped = data.skipped_at_load,
+            skipped = data.load_skips.len(),
+            repaired = data.repaired.len(),
             "OSM buildings indexed"
         );
         Some(data)

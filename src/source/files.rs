@@ -1,9 +1,9 @@
 //! The `--osm` files (or the procedural demo city), read once at start-up and held in memory.
 
-use super::{AreaBuildings, BuildingSource, DataChanged, SourceError};
+use super::{AreaBuildings, BuildingSource, DataChanged, SourceError, skips_near};
 use citymesh_core::building::set::BuildingSet;
 use citymesh_core::geo::GeoBbox;
-use citymesh_core::osm::{BuildingRecord, OsmError, read_buildings};
+use citymesh_core::osm::{BuildingRecord, OsmError, Repaired, Skipped, read_buildings};
 use futures_util::future::BoxFuture;
 use std::collections::HashSet;
 use std::hash::{DefaultHasher, Hash, Hasher};
@@ -28,8 +28,11 @@ pub enum OsmFileError {
 #[derive(Debug)]
 pub struct FileSource {
     pub set: Arc<BuildingSet>,
-    /// Buildings that could not be assembled from the files (missing nodes, unclosed rings...).
-    pub skipped_at_load: usize,
+    /// Buildings that could not be assembled from the files (missing nodes, unclosed rings...),
+    /// with where the files place them; `/scene/stats` reports those of its area.
+    pub load_skips: Vec<Skipped>,
+    /// Buildings built with less than the files describe.
+    pub repaired: Arc<Vec<Repaired>>,
     /// Changes whenever the files change, so cached tiles built from old data are not reused.
     pub fingerprint: String,
     /// Files never change while the server runs: nothing is ever sent.
@@ -41,7 +44,8 @@ impl FileSource {
     pub fn new(set: BuildingSet, fingerprint: &str) -> Self {
         Self {
             set: Arc::new(set),
-            skipped_at_load: 0,
+            load_skips: Vec::new(),
+            repaired: Arc::default(),
             fingerprint: fingerprint.to_owned(),
             changes: broadcast::channel(1).0,
         }
@@ -51,12 +55,14 @@ impl FileSource {
 impl BuildingSource for FileSource {
     fn buildings<'a>(
         &'a self,
-        _bbox: &'a GeoBbox,
+        bbox: &'a GeoBbox,
     ) -> BoxFuture<'a, Result<AreaBuildings, SourceError>> {
         Box::pin(async move {
             Ok(AreaBuildings {
                 set: self.set.clone(),
                 origin: "files".to_owned(),
+                load_skips: skips_near(&self.load_skips, bbox),
+                repaired: self.repaired.clone(),
             })
         })
     }
@@ -107,7 +113,8 @@ pub fn read_osm_file(path: &Path) -> Result<Vec<u8>, OsmFileError> {
 pub fn load_osm_files(paths: &[PathBuf]) -> Result<FileSource, OsmFileError> {
     let mut records: Vec<BuildingRecord> = Vec::new();
     let mut seen = HashSet::new();
-    let mut skipped = 0;
+    let mut load_skips = Vec::new();
+    let mut repaired = Vec::new();
     let mut h = DefaultHasher::new();
     for path in paths {
         let bytes = read_osm_file(path)?;
@@ -126,7 +133,11 @@ pub fn load_osm_files(paths: &[PathBuf]) -> Result<FileSource, OsmFileError> {
             skipped = osm.skipped.len(),
             "OSM file read"
         );
-        skipped += osm.skipped.len();
+        for skip in &osm.skipped {
+            tracing::warn!(file = %path.display(), id = %skip.id, reason = skip.reason.name(), "building skipped");
+        }
+        load_skips.extend(osm.skipped);
+        repaired.extend(osm.repaired);
         for b in osm.buildings {
             if seen.insert(b.id) {
                 records.push(b);
@@ -135,7 +146,8 @@ pub fn load_osm_files(paths: &[PathBuf]) -> Result<FileSource, OsmFileError> {
     }
     Ok(FileSource {
         set: Arc::new(BuildingSet::new(records)),
-        skipped_at_load: skipped,
+        load_skips,
+        repaired: Arc::new(repaired),
         fingerprint: format!("{:016x}", h.finish()),
         changes: broadcast::channel(1).0,
     })

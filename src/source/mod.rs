@@ -19,6 +19,7 @@ pub use files::{FileSource, OsmFileError, load_osm_files, read_osm_file};
 
 use citymesh_core::building::set::BuildingSet;
 use citymesh_core::geo::GeoBbox;
+use citymesh_core::osm::{Repaired, Skipped};
 use futures_util::future::BoxFuture;
 use std::sync::Arc;
 use tokio::sync::broadcast;
@@ -30,6 +31,39 @@ pub struct AreaBuildings {
     /// `files`, `stored`, `request` (given by the client), or
     /// `missing=14/x/y,... (offline: no buildings there)`.
     pub origin: String,
+    /// Buildings the data has near the area that could not be built when it was read.
+    pub load_skips: Vec<Skipped>,
+    /// Buildings built with less than the data describes (reported when generated).
+    pub repaired: Arc<Vec<Repaired>>,
+}
+
+impl AreaBuildings {
+    /// Buildings given with the request: nothing was skipped reading them here.
+    pub fn given(set: Arc<BuildingSet>) -> Self {
+        Self {
+            set,
+            origin: "request".to_owned(),
+            load_skips: Vec::new(),
+            repaired: Arc::default(),
+        }
+    }
+}
+
+/// The skips whose known place touches `bbox` (those the data cannot place are kept too: they
+/// came from the data that covers the area).
+pub fn skips_near(skips: &[Skipped], bbox: &GeoBbox) -> Vec<Skipped> {
+    skips
+        .iter()
+        .filter(|s| {
+            s.bounds.is_none_or(|[w, so, e, n]| {
+                w <= bbox.max_lon()
+                    && e >= bbox.min_lon()
+                    && so <= bbox.max_lat()
+                    && n >= bbox.min_lat()
+            })
+        })
+        .copied()
+        .collect()
 }
 
 /// The data of an area changed: everything built from it is stale.

@@ -10,12 +10,15 @@ mod store;
 
 pub use store::{DataOrigin, OsmTileStore, StoredDataTile, content_hash};
 
-use super::{AreaBuildings, BuildingSource, CHANGE_CAPACITY, DataChanged, SourceError, short_list};
+use super::{
+    AreaBuildings, BuildingSource, CHANGE_CAPACITY, DataChanged, SourceError, short_list,
+    skips_near,
+};
 use crate::metrics::{Metrics, UpstreamLabels};
 use crate::upstream::{OverpassClient, OverpassError};
 use citymesh_core::building::set::BuildingSet;
 use citymesh_core::geo::{GeoBbox, TileCoord};
-use citymesh_core::osm::{BuildingRecord, read_buildings};
+use citymesh_core::osm::{BuildingRecord, Repaired, Skipped, read_buildings};
 use data_tile::{MAX_DATA_TILES, affected_area, data_tiles_for};
 use futures_util::future::BoxFuture;
 use std::collections::HashSet;
@@ -27,6 +30,9 @@ use tokio::sync::broadcast;
 /// One parsed data tile.
 struct ParsedDataTile {
     records: Vec<BuildingRecord>,
+    /// Buildings of the data tile that could not be built, and those built with less.
+    skipped: Vec<Skipped>,
+    repaired: Vec<Repaired>,
     /// False when offline and nothing is stored for it.
     present: bool,
     /// When it was fetched (Unix seconds), for data from Overpass; `None` for imported data,
@@ -118,7 +124,27 @@ impl DataTileSource {
                 short_list(&missing)
             )
         };
-        Ok(AreaBuildings { set, origin })
+        // A building on a data-tile edge is in both tiles: report it once.
+        let mut seen = HashSet::new();
+        let skipped: Vec<Skipped> = parsed
+            .iter()
+            .flat_map(|p| &p.skipped)
+            .filter(|s| seen.insert(s.id))
+            .copied()
+            .collect();
+        let mut seen = HashSet::new();
+        let repaired: Vec<Repaired> = parsed
+            .iter()
+            .flat_map(|p| &p.repaired)
+            .filter(|r| seen.insert(r.id))
+            .copied()
+            .collect();
+        Ok(AreaBuildings {
+            set,
+            origin,
+            load_skips: skips_near(&skipped, bbox),
+            repaired: Arc::new(repaired),
+        })
     }
 
     async fn data_tile(&self, t: TileCoord) -> Result<Arc<ParsedDataTile>, SourceError> {
@@ -138,6 +164,8 @@ impl DataTileSource {
                 let Some(upstream) = &self.upstream else {
                     return Ok(Arc::new(ParsedDataTile {
                         records: Vec::new(),
+                        skipped: Vec::new(),
+                        repaired: Vec::new(),
                         present: false,
                         fetched_at: None,
                     }));
@@ -237,6 +265,8 @@ async fn parse(
             .map(|b| {
                 Arc::new(ParsedDataTile {
                     records: b.buildings,
+                    skipped: b.skipped,
+                    repaired: b.repaired,
                     present: true,
                     fetched_at,
                 })

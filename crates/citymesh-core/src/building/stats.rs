@@ -38,6 +38,9 @@ pub struct BuildingStats {
     pub shared_walls: usize,
     /// Roof dividing segments dropped because they crossed another (the roof is still closed).
     pub dropped_constraints: usize,
+    /// Generated records built with less than the data describes (e.g. `missing_inner_ring`),
+    /// by OSM id.
+    pub repaired_ids: Vec<(String, &'static str)>,
     /// The OSM ids (`way/123`) of the generated records, in generation order.
     #[serde(skip)]
     pub generated_ids: Vec<String>,

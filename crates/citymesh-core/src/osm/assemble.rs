@@ -81,10 +81,22 @@ impl SkipReason {
     }
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// A building that could not be built, where it is known to be.
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Skipped {
     pub id: OsmId,
     pub reason: SkipReason,
+    /// `[min_lon, min_lat, max_lon, max_lat]` of the nodes the data has for it, if any.
+    pub bounds: Option<[f64; 4]>,
+}
+
+/// A building built with less than the data describes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Repaired {
+    pub id: OsmId,
+    /// What was left out, e.g. `missing_inner_ring` (a courtyard whose ways or nodes are not in
+    /// the data: the outline is drawn without it).
+    pub what: &'static str,
 }
 
 /// The buildings of one OSM document.
@@ -92,6 +104,26 @@ pub struct Skipped {
 pub struct OsmBuildings {
     pub buildings: Vec<BuildingRecord>,
     pub skipped: Vec<Skipped>,
+    pub repaired: Vec<Repaired>,
+}
+
+/// The extent of the nodes of `ways` (by id) that the data has.
+fn known_bounds(
+    way_ids: impl Iterator<Item = i64>,
+    ways: &HashMap<i64, &RawWay>,
+    nodes: &HashMap<i64, (f64, f64)>,
+) -> Option<[f64; 4]> {
+    let mut b = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
+    let mut any = false;
+    for way in way_ids.filter_map(|id| ways.get(&id)) {
+        let inline = way.geometry.iter().flatten().copied();
+        let resolved = way.refs.iter().filter_map(|id| nodes.get(id).copied());
+        for (lon, lat) in inline.chain(resolved) {
+            b = [b[0].min(lon), b[1].min(lat), b[2].max(lon), b[3].max(lat)];
+            any = true;
+        }
+    }
+    any.then_some(b)
 }
 
 fn is_yes(tags: &Tags, key: &str) -> bool {
@@ -207,23 +239,37 @@ pub fn assemble(raw: RawOsm) -> OsmBuildings {
             continue;
         };
         let id = OsmId::Relation(rel.id);
+        // A courtyard the data lacks (ways or nodes missing, or not closing) is left out and the
+        // building drawn without it; a missing outline skips the building.
+        let mut inner_missing = false;
         let result = (|| {
             let mut outer = Vec::new();
             let mut inner = Vec::new();
             for m in rel.members.iter().filter(|m| m.kind == MemberKind::Way) {
+                let is_inner = m.role == "inner";
                 let points = match (&m.geometry, ways.get(&m.id)) {
-                    (Some(g), _) if !g.is_empty() => g
+                    (Some(g), _) if !g.is_empty() => Ok(g
                         .iter()
                         .map(|&(lon, lat)| RingNode { id: None, lon, lat })
-                        .collect(),
-                    (_, Some(way)) => way_points(way, &raw.nodes)?,
-                    (Some(_), None) => return Err(SkipReason::MissingNodes),
-                    (None, None) => return Err(SkipReason::MissingMembers),
+                        .collect()),
+                    (_, Some(way)) => way_points(way, &raw.nodes),
+                    (Some(_), None) => Err(SkipReason::MissingNodes),
+                    (None, None) => Err(SkipReason::MissingMembers),
                 };
-                if points.len() < 2 {
-                    return Err(SkipReason::TooFewNodes);
-                }
-                if m.role == "inner" {
+                let points = match points {
+                    Ok(p) if p.len() >= 2 => p,
+                    Ok(_) if is_inner => {
+                        inner_missing = true;
+                        continue;
+                    }
+                    Ok(_) => return Err(SkipReason::TooFewNodes),
+                    Err(_) if is_inner => {
+                        inner_missing = true;
+                        continue;
+                    }
+                    Err(reason) => return Err(reason),
+                };
+                if is_inner {
                     inner.push(points);
                 } else {
                     outer.push(points);
@@ -234,17 +280,37 @@ pub fn assemble(raw: RawOsm) -> OsmBuildings {
             if outers.is_empty() {
                 return Err(SkipReason::NoOuterRing);
             }
-            Ok((outers, join_rings(inner)?))
+            let inners = join_rings(inner).unwrap_or_else(|_| {
+                inner_missing = true;
+                Vec::new()
+            });
+            Ok((outers, inners))
         })();
         match result {
-            Ok((outers, inners)) => out.buildings.push(BuildingRecord {
-                id,
-                is_part,
-                outers,
-                inners,
-                tags: rel.tags.clone(),
-            }),
-            Err(reason) => out.skipped.push(Skipped { id, reason }),
+            Ok((outers, inners)) => {
+                if inner_missing {
+                    out.repaired.push(Repaired {
+                        id,
+                        what: "missing_inner_ring",
+                    });
+                }
+                out.buildings.push(BuildingRecord {
+                    id,
+                    is_part,
+                    outers,
+                    inners,
+                    tags: rel.tags.clone(),
+                });
+            }
+            Err(reason) => {
+                let members = rel
+                    .members
+                    .iter()
+                    .filter(|m| m.kind == MemberKind::Way)
+                    .map(|m| m.id);
+                let bounds = known_bounds(members, &ways, &raw.nodes);
+                out.skipped.push(Skipped { id, reason, bounds });
+            }
         }
     }
 
@@ -264,10 +330,14 @@ pub fn assemble(raw: RawOsm) -> OsmBuildings {
                 inners: Vec::new(),
                 tags: way.tags.clone(),
             }),
-            Err(reason) => out.skipped.push(Skipped { id, reason }),
+            Err(reason) => {
+                let bounds = known_bounds(std::iter::once(way.id), &ways, &raw.nodes);
+                out.skipped.push(Skipped { id, reason, bounds });
+            }
         }
     }
     out.buildings.sort_by_key(|b| b.id);
     out.skipped.sort_by_key(|s| s.id);
+    out.repaired.sort_by_key(|r| r.id);
     out
 }

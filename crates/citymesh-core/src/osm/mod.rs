@@ -13,7 +13,7 @@ mod write;
 mod xml;
 
 pub use assemble::{
-    BuildingRecord, OsmBuildings, OsmId, Ring, RingNode, SkipReason, Skipped, assemble,
+    BuildingRecord, OsmBuildings, OsmId, Repaired, Ring, RingNode, SkipReason, Skipped, assemble,
 };
 pub use raw::{Member, MemberKind, RawOsm, RawRelation, RawWay, Tags};
 pub use write::write_overpass_json;

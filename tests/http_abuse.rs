@@ -1,0 +1,612 @@
+//! Hostile requests and faulty upstreams: one test per defect class an outside attack found.
+//! Each answers a 4xx (our input) or 502/503/504 (upstream) with the JSON error body, costs a
+//! bounded amount, and never panics. Long-running cases are bounded by the server's own limits.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
+
+mod common;
+
+use axum::body::Body;
+use axum::http::{Request, StatusCode};
+use common::{app_with, data_dir, dem_dir, get, osm_bytes};
+use http_body_util::BodyExt;
+use serde_json::{Value, json};
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::process::{Child, Command, Stdio};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::Duration;
+use tower::ServiceExt;
+
+async fn demo_app(db: &tempfile::TempDir, extra: &[&str]) -> axum::Router {
+    let empty = db.path().join("no-dem");
+    std::fs::create_dir_all(&empty).unwrap();
+    let mut args = vec!["--assets-dir", "/nonexistent"];
+    args.extend_from_slice(extra);
+    // No data at all: the demo city, not --offline (app_with adds it unless told otherwise).
+    let argv: Vec<String> = ["serve", "--dem-dir", empty.to_str().unwrap(), "--cache-db"]
+        .iter()
+        .map(|s| (*s).to_owned())
+        .chain([db.path().join("c.sqlite").display().to_string()])
+        .chain(args.iter().map(|s| (*s).to_owned()))
+        .collect();
+    use clap::Parser;
+    let parsed = citymesh::cli::ServeArgs::parse_from(argv);
+    citymesh::app(citymesh::server::build_state(&parsed).await.unwrap())
+}
+
+async fn send(
+    app: &axum::Router,
+    request: Request<Body>,
+) -> (StatusCode, axum::http::HeaderMap, Value) {
+    let response = app.clone().oneshot(request).await.unwrap();
+    let (status, headers) = (response.status(), response.headers().clone());
+    let body = response.into_body().collect().await.unwrap().to_bytes();
+    let json = serde_json::from_slice(&body).unwrap_or_else(|e| {
+        panic!(
+            "{status}: body is not JSON ({e}): {}",
+            String::from_utf8_lossy(&body)
+        )
+    });
+    (status, headers, json)
+}
+
+/// Status, headers and body of a stub answer.
+type Answer = (u16, Vec<(String, String)>, Vec<u8>);
+
+/// A counting stub upstream whose answer the test chooses.
+struct Upstream {
+    requests: AtomicUsize,
+    answer: std::sync::Mutex<Answer>,
+}
+
+async fn start_upstream(
+    status: u16,
+    headers: &[(&str, &str)],
+    body: Vec<u8>,
+) -> (Arc<Upstream>, String) {
+    let up = Arc::new(Upstream {
+        requests: AtomicUsize::new(0),
+        answer: std::sync::Mutex::new((
+            status,
+            headers
+                .iter()
+                .map(|(k, v)| ((*k).to_owned(), (*v).to_owned()))
+                .collect(),
+            body,
+        )),
+    });
+    async fn handler(
+        axum::extract::State(up): axum::extract::State<Arc<Upstream>>,
+    ) -> axum::response::Response {
+        up.requests.fetch_add(1, Ordering::SeqCst);
+        let (status, headers, body) = up.answer.lock().unwrap().clone();
+        let mut r = axum::response::Response::new(Body::from(body));
+        *r.status_mut() = StatusCode::from_u16(status).unwrap();
+        for (k, v) in headers {
+            r.headers_mut().insert(
+                axum::http::HeaderName::from_bytes(k.as_bytes()).unwrap(),
+                v.parse().unwrap(),
+            );
+        }
+        r
+    }
+    let app = axum::Router::new()
+        .route("/api/interpreter", axum::routing::post(handler))
+        .with_state(up.clone());
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    tokio::spawn(async move { axum::serve(listener, app).await.unwrap() });
+    // A key in the URL, which error messages must never repeat.
+    (up, format!("http://{addr}/api/interpreter?key=s3cret-key"))
+}
+
+async fn online(db: &tempfile::TempDir, url: &str, extra: &[&str]) -> axum::Router {
+    let mut args = vec![
+        "--overpass-url",
+        url,
+        "--overpass-retries",
+        "0",
+        "--overpass-timeout-s",
+        "5",
+    ];
+    args.extend_from_slice(extra);
+    app_with(&dem_dir(), &db.path().join("c.sqlite"), &args).await
+}
+
+const KIRCHFELD_TILE: &str = "/tiles/16/34297/22493.glb";
+
+#[tokio::test]
+async fn d1_thin_and_long_boxes_are_refused_before_any_work() {
+    let db = tempfile::tempdir().unwrap();
+    let (up, url) = start_upstream(200, &[], br#"{"elements": []}"#.to_vec()).await;
+    let app = online(&db, &url, &[]).await;
+    // 22 km² but 1.3 million ground cells.
+    for path in ["/scene.glb", "/scene/stats", "/scene"] {
+        let a = get(&app, &format!("{path}?bbox=-180,0,180,0.000005")).await;
+        assert_eq!(a.status, StatusCode::BAD_REQUEST, "{path}");
+        assert_eq!(a.json()["error"], "bbox_too_large");
+        assert!(
+            a.json()["detail"]
+                .as_str()
+                .unwrap()
+                .contains("ground cells")
+        );
+    }
+    // 1.6 km² and few cells, but 46 data tiles long: refused before any upstream call.
+    let long = get(&app, "/scene/stats?bbox=8.0,49.0,9.0,49.0002").await;
+    assert_eq!(
+        long.status,
+        StatusCode::BAD_REQUEST,
+        "{}",
+        String::from_utf8_lossy(&long.body)
+    );
+    assert!(
+        long.json()["detail"]
+            .as_str()
+            .unwrap()
+            .contains("data tiles"),
+        "{}",
+        long.json()
+    );
+    assert_eq!(up.requests.load(Ordering::SeqCst), 0);
+}
+
+#[tokio::test]
+async fn d1_offline_headers_stay_short() {
+    let db = tempfile::tempdir().unwrap();
+    // Offline with nothing stored: every data tile is missing; the header lists eight at most.
+    let app = app_with(&dem_dir(), &db.path().join("c.sqlite"), &["--offline"]).await;
+    let a = get(&app, "/scene.glb?bbox=8.30,49.00,8.42,49.02").await;
+    assert_eq!(a.status, StatusCode::OK);
+    let osm = a.header("x-citymesh-osm");
+    assert!(osm.len() < 200, "{osm}");
+    assert!(osm.contains("more)"), "{osm}");
+}
+
+#[tokio::test]
+async fn d2_huge_and_crossing_rings_are_refused() {
+    let db = tempfile::tempdir().unwrap();
+    let app = demo_app(&db, &[]).await;
+    let post = |geojson: Value| {
+        Request::post("/scene.glb")
+            .header("content-type", "application/geo+json")
+            .body(Body::from(geojson.to_string()))
+            .unwrap()
+    };
+    let ring = |n: usize, zigzag: bool| -> Vec<[f64; 2]> {
+        let mut r: Vec<[f64; 2]> = (0..n)
+            .map(|i| {
+                let t = i as f64 / n as f64 * std::f64::consts::TAU;
+                let radius = if zigzag && i % 2 == 1 { 0.0002 } else { 0.0008 };
+                [8.4 + radius * t.cos() * 1.5, 49.0 + radius * t.sin()]
+            })
+            .collect();
+        if zigzag {
+            // Swap two far vertices: the ring crosses itself.
+            r.swap(10, n / 2);
+        }
+        r.push(r[0]);
+        r
+    };
+    let feature = |r: Vec<[f64; 2]>| {
+        json!({"type": "FeatureCollection", "features": [{"type": "Feature",
+            "properties": {"building": "yes", "height": 10},
+            "geometry": {"type": "Polygon", "coordinates": [r]}}]})
+    };
+    // 30,000 vertices: over the cap per ring, refused without the quadratic check.
+    let (status, _, body) = send(&app, post(feature(ring(30_000, false)))).await;
+    assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY, "{body}");
+    assert!(
+        body["detail"].as_str().unwrap().contains("4000 vertices"),
+        "{body}"
+    );
+    // 3,000 vertices crossing itself: found by the sweep.
+    let (status, _, body) = send(&app, post(feature(ring(3_000, true)))).await;
+    assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY, "{body}");
+    assert!(
+        body["detail"].as_str().unwrap().contains("crosses itself"),
+        "{body}"
+    );
+    // The same ring without the swap is a valid building.
+    let ok = app
+        .clone()
+        .oneshot(post(feature(ring(3_000, false))))
+        .await
+        .unwrap();
+    assert_eq!(ok.status(), StatusCode::OK);
+}
+
+#[tokio::test]
+async fn d4_oversized_and_incomplete_upstream_answers_are_502_and_not_stored() {
+    // 2 MB of valid JSON against a 1 MB limit.
+    let mut big = br#"{"elements": [], "padding": ""#.to_vec();
+    big.extend(std::iter::repeat_n(b'x', 2 << 20));
+    big.extend_from_slice(br#""}"#);
+    let db = tempfile::tempdir().unwrap();
+    let (up, url) = start_upstream(200, &[], big).await;
+    let app = online(&db, &url, &["--overpass-max-mb", "1"]).await;
+    let a = get(&app, KIRCHFELD_TILE).await;
+    assert_eq!(a.status, StatusCode::BAD_GATEWAY);
+    assert!(
+        a.json()["detail"]
+            .as_str()
+            .unwrap()
+            .contains("more than 1 MB"),
+        "{}",
+        a.json()
+    );
+    assert!(!a.json()["detail"].as_str().unwrap().contains("s3cret"));
+    // Nothing was stored: the next request asks again.
+    assert_eq!(
+        get(&app, KIRCHFELD_TILE).await.status,
+        StatusCode::BAD_GATEWAY
+    );
+    assert_eq!(up.requests.load(Ordering::SeqCst), 2);
+
+    // A relation naming a way the answer lacks: incomplete.
+    let cut = json!({"elements": [
+        {"type": "relation", "id": 1, "tags": {"building": "yes", "type": "multipolygon"},
+         "members": [{"type": "way", "ref": 2, "role": "outer"}]}]});
+    *up.answer.lock().unwrap() = (200, vec![], cut.to_string().into_bytes());
+    let db2 = tempfile::tempdir().unwrap();
+    let app = online(&db2, &url, &[]).await;
+    let a = get(&app, KIRCHFELD_TILE).await;
+    assert_eq!(a.status, StatusCode::BAD_GATEWAY);
+    assert!(
+        a.json()["detail"].as_str().unwrap().contains("names way 2"),
+        "{}",
+        a.json()
+    );
+}
+
+#[tokio::test]
+async fn upstream_errors_name_no_url_cap_retry_after_and_tell_504s_apart() {
+    let db = tempfile::tempdir().unwrap();
+    let (up, url) = start_upstream(500, &[], b"boom".to_vec()).await;
+    let app = online(&db, &url, &[]).await;
+    let a = get(&app, KIRCHFELD_TILE).await;
+    assert_eq!(a.status, StatusCode::BAD_GATEWAY);
+    let detail = a.json()["detail"].as_str().unwrap().to_owned();
+    assert!(detail.contains("the OpenStreetMap upstream"), "{detail}");
+    assert!(
+        !detail.contains("s3cret") && !detail.contains("127.0.0.1"),
+        "{detail}"
+    );
+
+    *up.answer.lock().unwrap() = (429, vec![("retry-after".into(), "100000".into())], vec![]);
+    let a = get(&app, KIRCHFELD_TILE).await;
+    assert_eq!(a.status, StatusCode::SERVICE_UNAVAILABLE);
+    assert_eq!(a.header("retry-after"), "120");
+
+    *up.answer.lock().unwrap() = (504, vec![], b"gateway timeout".to_vec());
+    let a = get(&app, KIRCHFELD_TILE).await;
+    assert_eq!(a.status, StatusCode::GATEWAY_TIMEOUT);
+    let detail = a.json()["detail"].as_str().unwrap().to_owned();
+    assert!(detail.contains("reported a gateway timeout"), "{detail}");
+    assert!(!detail.contains("did not answer within"), "{detail}");
+}
+
+#[tokio::test]
+async fn d5_overflowing_weights_are_refused_not_a_panic() {
+    let db = tempfile::tempdir().unwrap();
+    let app = demo_app(&db, &[]).await;
+    for query in [
+        "layouts=detached:1e308,row:1e308",
+        "roofs=flat:1e308,gabled:1e308",
+        "seed=9223372036854775808",
+    ] {
+        for path in ["/procedural.glb", "/procedural.geojson"] {
+            let a = get(&app, &format!("{path}?{query}")).await;
+            assert_eq!(a.status, StatusCode::BAD_REQUEST, "{path}?{query}");
+            let code = a.json()["error"].as_str().unwrap().to_owned();
+            assert!(
+                code == "invalid_parameter" || code == "invalid_query",
+                "{path}?{query}: {code}"
+            );
+        }
+    }
+}
+
+/// Bytes and count of the stored generated tiles.
+async fn stored_tiles(db: &std::path::Path) -> (i64, i64) {
+    let pool = citymesh::db::open(db.to_str().unwrap()).await.unwrap();
+    let row: (i64, i64) =
+        sqlx::query_as("SELECT COALESCE(SUM(length(bytes)), 0), COUNT(*) FROM generated_tiles")
+            .fetch_one(&pool)
+            .await
+            .unwrap();
+    row
+}
+
+#[tokio::test]
+async fn d6_the_tile_store_stays_under_its_bound_evicting_least_recently_used() {
+    let db = tempfile::tempdir().unwrap();
+    // No memory cache, so every repeat comes from SQLite (or is generated again if evicted).
+    let app = demo_app(
+        &db,
+        &[
+            "--tile-store-mb",
+            "1",
+            "--tile-cache-mb",
+            "0",
+            "--max-zoom",
+            "18",
+        ],
+    )
+    .await;
+    // Distinct z18 tiles over the demo city (around 8.4044 E, 49.0135 N), newest last.
+    let first = "/tiles/18/137188/90010.glb";
+    assert_eq!(get(&app, first).await.status, StatusCode::OK);
+    let mut total = 0usize;
+    let mut k = 0;
+    while total < 3 << 20 {
+        let (x, y) = (137_180 + k % 16, 90_000 + k / 16);
+        let a = get(&app, &format!("/tiles/18/{x}/{y}.glb")).await;
+        assert_eq!(a.status, StatusCode::OK);
+        total += a.body.len();
+        k += 1;
+        // Keep one tile in use: it must survive eviction.
+        assert_ne!(
+            get(&app, first).await.header("x-citymesh-cache"),
+            "miss",
+            "after {k} tiles"
+        );
+    }
+    let (bytes, count) = stored_tiles(&db.path().join("c.sqlite")).await;
+    assert!(bytes <= 1 << 20, "{bytes} bytes stored");
+    assert!(count < k, "{count} of {k} tiles stored");
+    // The least recently used tile was evicted: asking again generates it.
+    assert_eq!(
+        get(&app, "/tiles/18/137180/90000.glb")
+            .await
+            .header("x-citymesh-cache"),
+        "miss"
+    );
+}
+
+#[tokio::test]
+async fn every_error_has_a_json_body_and_media_types_ignore_case() {
+    let db = tempfile::tempdir().unwrap();
+    let app = demo_app(&db, &[]).await;
+    // 405: a method the route does not answer.
+    let (status, headers, body) = send(
+        &app,
+        Request::post("/tiles/16/1/1.glb")
+            .body(Body::empty())
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(status, StatusCode::METHOD_NOT_ALLOWED);
+    assert_eq!(body["error"], "method_not_allowed");
+    assert!(headers.get("allow").is_some());
+    // A missing static file.
+    let (status, _, body) = send(
+        &app,
+        Request::get("/vendor/three/nope.js")
+            .body(Body::empty())
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(
+        (status, body["error"].as_str()),
+        (StatusCode::NOT_FOUND, Some("not_found"))
+    );
+    // 414 and 431.
+    let long = format!("/scene.glb?bbox={}", "1".repeat(9000));
+    let (status, _, body) = send(&app, Request::get(long).body(Body::empty()).unwrap()).await;
+    assert_eq!(
+        (status, body["error"].as_str()),
+        (StatusCode::URI_TOO_LONG, Some("uri_too_long"))
+    );
+    let mut big = Request::get("/health");
+    for i in 0..40 {
+        big = big.header(format!("x-filler-{i}"), "v".repeat(1000));
+    }
+    let (status, _, body) = send(&app, big.body(Body::empty()).unwrap()).await;
+    assert_eq!(
+        (status, body["error"].as_str()),
+        (
+            StatusCode::REQUEST_HEADER_FIELDS_TOO_LARGE,
+            Some("headers_too_large")
+        )
+    );
+    // Media types are case-insensitive.
+    let geojson = json!({"type": "FeatureCollection", "features": [{"type": "Feature",
+        "properties": {"building": "yes", "height": 10},
+        "geometry": {"type": "Polygon", "coordinates": [[[8.4, 49.0], [8.4003, 49.0], [8.4003, 49.0002], [8.4, 49.0002], [8.4, 49.0]]]}}]});
+    let r = app
+        .clone()
+        .oneshot(
+            Request::post("/scene.glb")
+                .header("content-type", "APPLICATION/JSON; charset=UTF-8")
+                .body(Body::from(geojson.to_string()))
+                .unwrap(),
+        )
+        .await
+        .unwrap();
+    assert_eq!(r.status(), StatusCode::OK);
+}
+
+#[tokio::test]
+async fn load_time_skips_are_reported_by_id_and_missing_courtyards_repaired() {
+    // Kirchfeld as Overpass JSON without one node of way 35538135 and without the courtyard
+    // way of relation 1776559.
+    let mut doc: Value =
+        serde_json::from_slice(&osm_bytes("karlsruhe-kirchfeld.overpass.json")).unwrap();
+    let elements = doc["elements"].as_array_mut().unwrap();
+    let way = elements
+        .iter()
+        .find(|e| e["type"] == "way" && e["id"] == 35_538_135)
+        .unwrap()
+        .clone();
+    let node = way["nodes"][0].as_i64().unwrap();
+    elements.retain(|e| {
+        let dropped_node = e["type"] == "node" && e["id"] == node;
+        let dropped_way = e["type"] == "way" && e["id"] == 132_344_585;
+        !(dropped_node || dropped_way)
+    });
+    let db = tempfile::tempdir().unwrap();
+    let file = db.path().join("cut.json");
+    std::fs::write(&file, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let app = app_with(
+        &dem_dir(),
+        &db.path().join("c.sqlite"),
+        &["--osm", file.to_str().unwrap()],
+    )
+    .await;
+    let stats = get(&app, "/scene/stats?bbox=8.3877,49.0390,8.4039,49.0640")
+        .await
+        .json();
+    let b = &stats["buildings"];
+    let skipped: Vec<String> = b["skipped_ids"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| {
+            format!(
+                "{} {}",
+                s["id"].as_str().unwrap(),
+                s["reason"].as_str().unwrap()
+            )
+        })
+        .collect();
+    assert!(
+        skipped.contains(&"way/35538135 missing_nodes".to_owned()),
+        "{skipped:?}"
+    );
+    assert!(b["skipped"]["missing_nodes"].as_u64().unwrap() >= 1);
+    assert_eq!(
+        b["repaired_ids"],
+        json!([{"id": "relation/1776559", "what": "missing_inner_ring"}])
+    );
+    // A box elsewhere does not report them.
+    let far = get(&app, "/scene/stats?bbox=8.40,49.00,8.41,49.01")
+        .await
+        .json();
+    assert_eq!(far["buildings"]["skipped_ids"], json!([]));
+}
+
+#[tokio::test]
+async fn start_up_says_what_to_fix_about_the_cache_database() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("a-file");
+    std::fs::write(&file, b"x").unwrap();
+    let db = file.join("c.sqlite");
+    use clap::Parser;
+    let args = citymesh::cli::ServeArgs::parse_from([
+        "serve",
+        "--offline",
+        "--cache-db",
+        db.to_str().unwrap(),
+    ]);
+    let e = format!(
+        "{:#}",
+        citymesh::server::build_state(&args).await.err().unwrap()
+    );
+    assert!(e.contains("is a file") && e.contains("--cache-db"), "{e}");
+}
+
+/// The real binary with tight connection limits; returns it and its address.
+fn serve_binary(db: &tempfile::TempDir, extra: &[&str]) -> (Child, String) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_citymesh"))
+        .args(["serve", "--offline", "--listen", "127.0.0.1:0", "--dem-dir"])
+        .arg(dem_dir())
+        .arg("--cache-db")
+        .arg(db.path().join("c.sqlite"))
+        .args(extra)
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
+    let addr = loop {
+        let line = lines
+            .next()
+            .expect("server exited before listening")
+            .unwrap();
+        if let Some(rest) = line.split("listening on http://").nth(1) {
+            break rest.split('/').next().unwrap().to_owned();
+        }
+    };
+    std::thread::spawn(move || for _ in lines {});
+    (child, addr)
+}
+
+/// Whether the server closes the connection before `bound` (reads return end of file or reset).
+fn closed_by_server(mut stream: TcpStream, bound: Duration) -> bool {
+    stream.set_read_timeout(Some(bound)).unwrap();
+    let mut buf = [0u8; 1024];
+    loop {
+        match stream.read(&mut buf) {
+            Ok(0) => return true,
+            Ok(_) => {}
+            Err(e)
+                if e.kind() == std::io::ErrorKind::WouldBlock
+                    || e.kind() == std::io::ErrorKind::TimedOut =>
+            {
+                return false;
+            }
+            Err(_) => return true,
+        }
+    }
+}
+
+#[test]
+fn d3_half_sent_headers_idle_connections_and_the_connection_cap() {
+    let db = tempfile::tempdir().unwrap();
+    let _ = data_dir();
+    let (mut child, addr) = serve_binary(
+        &db,
+        &[
+            "--header-timeout-s",
+            "1",
+            "--idle-timeout-s",
+            "3",
+            "--request-timeout-s",
+            "2",
+            "--max-connections",
+            "2",
+        ],
+    );
+    // A half-sent request header is dropped after the header timeout.
+    let mut half = TcpStream::connect(&addr).unwrap();
+    half.write_all(b"GET /health HTTP/1.1\r\nHost: x\r\n")
+        .unwrap();
+    assert!(
+        closed_by_server(half, Duration::from_secs(10)),
+        "half-sent header held open"
+    );
+    // An idle keep-alive connection is closed after the idle timeout.
+    let mut idle = TcpStream::connect(&addr).unwrap();
+    idle.write_all(b"GET /health HTTP/1.1\r\nHost: x\r\n\r\n")
+        .unwrap();
+    assert!(
+        closed_by_server(idle, Duration::from_secs(15)),
+        "idle connection held open"
+    );
+    // With two connections open, a third is not served until one closes.
+    let a = TcpStream::connect(&addr).unwrap();
+    let b = TcpStream::connect(&addr).unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    let mut c = TcpStream::connect(&addr).unwrap();
+    c.write_all(b"GET /health HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n")
+        .unwrap();
+    c.set_read_timeout(Some(Duration::from_millis(500)))
+        .unwrap();
+    let mut buf = [0u8; 64];
+    assert!(
+        c.read(&mut buf).is_err(),
+        "a third connection was served over the cap"
+    );
+    drop((a, b));
+    c.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    let mut answer = Vec::new();
+    c.read_to_end(&mut answer).unwrap();
+    assert!(
+        answer.starts_with(b"HTTP/1.1 200"),
+        "{}",
+        String::from_utf8_lossy(&answer)
+    );
+    child.kill().unwrap();
+    child.wait().unwrap();
+}
