@@ -38,6 +38,15 @@ impl Window {
     fn get(&self, i: i64, j: i64) -> Option<f64> {
         self.samples[(j - self.j0) as usize * self.width + (i - self.i0) as usize]
     }
+
+    /// The cell of `u` (sample units) and the offset in it, kept to the cells in use: a point
+    /// exactly on the box's outer edge belongs to the last cell inside (Equation 1 gives both
+    /// cells the same height along their shared edge), so its corners stay in the window.
+    fn cell_of(&self, u: f64, first: i64, count: usize) -> (i64, f64) {
+        let (i, _) = super::elevation::cell_of(u);
+        let i = i.clamp(first + 1, first + count as i64 - 2);
+        (i, (u - i as f64).clamp(-0.5, 0.5))
+    }
 }
 
 /// A vertex of a clipped polygon, in sample units.
@@ -217,8 +226,9 @@ pub fn build_ground(
 
 /// Equation 1 over the window's samples.
 fn model_height(window: &Window, u: f64, v: f64) -> f64 {
-    let (i, du) = super::elevation::cell_of(u);
-    let (j, dv) = super::elevation::cell_of(v);
+    let rows = window.samples.len() / window.width;
+    let (i, du) = window.cell_of(u, window.i0, window.width);
+    let (j, dv) = window.cell_of(v, window.j0, rows);
     let corner = |ci: i64, cj: i64| {
         corner_height([
             window.get(ci, cj),

@@ -1,0 +1,160 @@
+//! The targets: the OSM readers (PBF, XML, Overpass JSON), the GeoJSON reader, the HGT parser
+//! with the ground it builds, the text parsers of request parameters and tags, and the building
+//! generator through to a closed mesh.
+
+use citymesh_core::building::set::BuildingSet;
+use citymesh_core::building::tags::{
+    parse_angle, parse_colour, parse_direction, parse_length, parse_levels,
+};
+use citymesh_core::geo::{GeoBbox, TileCoord};
+use citymesh_core::geojson::{GeoJsonLimits, read_geojson};
+use citymesh_core::osm::read_buildings;
+use citymesh_core::scene::Scene;
+use citymesh_core::terrain::{ElevationModel, HgtTile};
+use std::sync::Arc;
+
+/// One fuzz target: its name and the function that must not panic on any bytes.
+#[derive(Clone, Copy)]
+pub struct Target {
+    pub name: &'static str,
+    pub run: fn(&[u8]),
+    /// Real inputs (file names under the data folder's `osm/` or `dem/`) to mutate.
+    pub seeds: &'static [&'static str],
+    /// Small inputs of the right shape to mutate besides.
+    pub inline: &'static [&'static str],
+}
+
+const GEOJSON_SEED: &str = r#"{"type": "FeatureCollection", "bbox": [8.4, 49.0, 8.401, 49.001], "features": [
+{"type": "Feature", "properties": {"building": "yes", "height": 12, "roof:shape": "gabled", "roof:height": 3},
+ "geometry": {"type": "Polygon", "coordinates": [[[8.4001, 49.0001], [8.4005, 49.0001], [8.4005, 49.0004], [8.4001, 49.0004], [8.4001, 49.0001]]]}},
+{"type": "Feature", "properties": {"building:part": "yes", "min_height": 4, "building:levels": "3", "roof:shape": "hipped"},
+ "geometry": {"type": "MultiPolygon", "coordinates": [[[[8.4006, 49.0005], [8.4009, 49.0005], [8.4009, 49.0008], [8.4006, 49.0008], [8.4006, 49.0005]],
+ [[8.4007, 49.0006], [8.40075, 49.00065], [8.40072, 49.0007], [8.4007, 49.0006]]]]}}]}"#;
+
+/// Every target.
+pub const TARGETS: [Target; 7] = [
+    Target {
+        name: "osm_pbf",
+        run: osm,
+        seeds: &["osm/tram-junction.osm.pbf"],
+        inline: &[],
+    },
+    Target {
+        name: "osm_xml",
+        run: osm,
+        seeds: &["osm/nuremberg-laufamholz.osm"],
+        inline: &[],
+    },
+    Target {
+        name: "osm_json",
+        run: osm,
+        seeds: &["osm/karlsruhe-kirchfeld.overpass.json"],
+        inline: &[],
+    },
+    Target {
+        name: "geojson",
+        run: geojson,
+        seeds: &[],
+        inline: &[GEOJSON_SEED],
+    },
+    Target {
+        name: "hgt",
+        run: hgt,
+        seeds: &[],
+        inline: &[],
+    },
+    Target {
+        name: "params",
+        run: params,
+        seeds: &[],
+        inline: &[
+            "8.39,49.04,8.41,49.06",
+            "16/34297/22502",
+            "12 m;3;NE;#ff0000;45",
+        ],
+    },
+    Target {
+        name: "building",
+        run: super::building::building,
+        seeds: &[],
+        inline: &[],
+    },
+];
+
+/// The target of a name.
+pub fn find(name: &str) -> Option<Target> {
+    TARGETS.iter().copied().find(|t| t.name == name)
+}
+
+/// Any OSM input: read, then indexed as the server indexes it.
+fn osm(bytes: &[u8]) {
+    if let Ok(b) = read_buildings(bytes) {
+        let set = BuildingSet::new(b.buildings);
+        let _ = set.extent();
+    }
+}
+
+fn geojson(bytes: &[u8]) {
+    let limits = GeoJsonLimits {
+        max_features: 200,
+        max_vertices: 20_000,
+    };
+    if let Ok(scene) = read_geojson(bytes, limits) {
+        let set = BuildingSet::new(scene.records);
+        let _ = set.groups();
+    }
+}
+
+/// HGT bytes of any length; a tile of the right size (its samples taken from the input, cycled)
+/// becomes an elevation model whose ground is built over a small box.
+fn hgt(bytes: &[u8]) {
+    let _ = HgtTile::from_bytes(49, 8, bytes);
+    if bytes.len() < 2 {
+        return;
+    }
+    let mut full = Vec::with_capacity(2_884_802);
+    while full.len() < 2_884_802 {
+        let take = (2_884_802 - full.len()).min(bytes.len());
+        full.extend_from_slice(&bytes[..take]);
+    }
+    let Ok(tile) = HgtTile::from_bytes(49, 8, &full) else {
+        return;
+    };
+    let model = ElevationModel::new(vec![Arc::new(tile)]);
+    let x = f64::from(bytes[0]) / 256.0;
+    if let Ok(bbox) = GeoBbox::new(
+        8.0 + x * 0.9,
+        49.0 + x * 0.9,
+        8.01 + x * 0.9,
+        49.01 + x * 0.9,
+    ) {
+        let scene = Scene::ground(&model, &bbox);
+        assert!(
+            scene.mesh.positions.iter().flatten().all(|c| c.is_finite()),
+            "ground with a non-finite position"
+        );
+        let _ = scene.to_glb();
+    }
+}
+
+/// The text parsers a request or a tag reaches: boxes, tile paths, lengths, levels, angles,
+/// directions, colours.
+fn params(bytes: &[u8]) {
+    let text = String::from_utf8_lossy(bytes);
+    let _ = text.parse::<GeoBbox>();
+    let mut parts = text.splitn(3, '/');
+    let mut number = || parts.next().and_then(|p| p.parse::<u32>().ok());
+    if let (Some(z), Some(x), Some(y)) = (number(), number(), number())
+        && let Ok(t) = TileCoord::new(z, x, y)
+    {
+        let b = t.bounds();
+        assert!(b.contains(b.center().0, b.center().1));
+    }
+    for value in text.split(';') {
+        let _ = parse_length(value);
+        let _ = parse_levels(value);
+        let _ = parse_angle(value);
+        let _ = parse_direction(value);
+        let _ = parse_colour(value);
+    }
+}
