@@ -87,10 +87,16 @@ fn record(u: &mut Unstructured<'_>) -> Result<BuildingRecord> {
     })
 }
 
+/// The building `bytes` describe, if they describe one (to look at a saved failure).
+pub fn decode_building(bytes: &[u8]) -> Option<BuildingRecord> {
+    record(&mut Unstructured::new(bytes)).ok()
+}
+
 /// Generates one arbitrary building; panics when its mesh is generated but not closed.
 pub fn building(bytes: &[u8]) {
-    let mut u = Unstructured::new(bytes);
-    let Ok(record) = record(&mut u) else { return };
+    let Some(record) = decode_building(bytes) else {
+        return;
+    };
     let Ok(bbox) = GeoBbox::new(8.399, 48.999, 8.401, 49.001) else {
         return;
     };

@@ -8,5 +8,6 @@ mod building;
 mod driver;
 mod targets;
 
+pub use building::decode_building;
 pub use driver::{FuzzReport, run};
 pub use targets::{TARGETS, Target, find};

@@ -13,8 +13,8 @@ use super::roof_surface::RoofSurface;
 use super::stats::BuildingStats;
 use super::tags::BuildingTags;
 use crate::geo::{GeoBbox, LocalFrame};
-use crate::mesh::Mesh;
-use crate::osm::{BuildingRecord, Ring};
+use crate::mesh::{Mesh, check_closed};
+use crate::osm::{BuildingRecord, OsmId, Ring};
 use crate::terrain::ElevationModel;
 use geo::{BooleanOps, Coord, LineString, MultiPolygon, Polygon};
 
@@ -66,6 +66,8 @@ pub fn generate_cluster(
         .collect();
 
     let mut roofs: Vec<RoofSurface> = Vec::new();
+    // The record each roof belongs to.
+    let mut roof_ids: Vec<OsmId> = Vec::new();
     let mut volumes: Vec<Volume> = Vec::new();
     for (i, p) in prepared.iter().enumerate() {
         let parts: Vec<&Prepared> = (0..prepared.len())
@@ -125,6 +127,7 @@ pub fn generate_cluster(
             }
             produced = true;
             roofs.push(surface);
+            roof_ids.push(p.record.id);
             for piece in pieces {
                 volumes.push(Volume {
                     footprint: piece,
@@ -143,7 +146,33 @@ pub fn generate_cluster(
             stats.generated_ids.push(p.record.id.to_string());
         }
     }
-    let report = mesh_group(&volumes, &roofs, mesh);
+    let (positions, triangles) = (mesh.positions.len(), mesh.triangles.len());
+    let mut report = mesh_group(&volumes, &roofs, mesh);
+    // A sloped roof over a courtyard can be cut so finely near its bends that the triangulation
+    // leaves a sliver (found by fuzzing). Such groups are checked; one that is not closed is
+    // built again with those roofs flat, and each flattened roof is reported.
+    let risky: Vec<usize> = volumes
+        .iter()
+        .filter(|v| !v.footprint.holes.is_empty() && !roofs[v.roof].is_planar())
+        .map(|v| v.roof)
+        .collect();
+    if !risky.is_empty()
+        && !check_closed(mesh, triangles..mesh.triangles.len()).is_closed_and_outward()
+    {
+        mesh.positions.truncate(positions);
+        mesh.triangles.truncate(triangles);
+        mesh.styles.truncate(triangles);
+        for &r in &risky {
+            // No rise: flat at the roof's top.
+            roofs[r].roof_height = 0.0;
+        }
+        let mut flattened: Vec<OsmId> = risky.iter().map(|&r| roof_ids[r]).collect();
+        flattened.dedup();
+        for id in flattened {
+            stats.repaired_ids.push((id.to_string(), "roof_flattened"));
+        }
+        report = mesh_group(&volumes, &roofs, mesh);
+    }
     stats.shared_walls += report.shared_edges;
     stats.dropped_constraints += report.dropped_constraints;
 }
