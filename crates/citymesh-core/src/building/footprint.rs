@@ -18,6 +18,9 @@ pub const MIN_AREA: f64 = 0.05;
 /// in the worst case.
 pub const MAX_RING_VERTICES: usize = 4_000;
 
+/// Rings up to this many vertices are checked pair by pair (cheaper than sorting for them).
+const SMALL_RING: usize = 48;
+
 /// What identifies a footprint point across buildings: its OSM node id, or where the source gives
 /// no ids, its exact projected coordinates.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -153,14 +156,22 @@ impl FootprintRing {
     /// Whether two edges of the ring cross or touch anywhere but at their shared end.
     fn self_intersects(&self) -> bool {
         let n = self.points.len();
-        let edges: Vec<_> = (0..n)
-            .map(|i| (self.points[i], self.points[(i + 1) % n]))
-            .collect();
-        let boxes: Vec<_> = edges.iter().map(|&(a, b)| segment_bounds(a, b)).collect();
-        any_overlapping_pair(&boxes, |i, j| {
+        let edge = |i: usize| (self.points[i], self.points[(i + 1) % n]);
+        let touch = |i: usize, j: usize| {
             let adjacent = j == i + 1 || (i == 0 && j == n - 1);
-            segments_touch(edges[i], edges[j], adjacent)
-        })
+            segments_touch(edge(i), edge(j), adjacent)
+        };
+        // Most outlines are small: all pairs without allocating; long rings take the sweep.
+        if n <= SMALL_RING {
+            return (0..n).any(|i| (i + 1..n).any(|j| touch(i, j)));
+        }
+        let boxes: Vec<_> = (0..n)
+            .map(|i| {
+                let (a, b) = edge(i);
+                segment_bounds(a, b)
+            })
+            .collect();
+        any_overlapping_pair(&boxes, touch)
     }
 }
 
@@ -360,16 +371,20 @@ fn segments_touch(
 }
 
 fn rings_touch(x: &FootprintRing, y: &FootprintRing) -> bool {
-    fn edges(r: &FootprintRing) -> impl Iterator<Item = ([f64; 2], [f64; 2])> + '_ {
-        let n = r.len();
-        (0..n).map(move |i| (r.points[i], r.points[(i + 1) % n]))
+    let (n, m) = (x.len(), y.len());
+    let x_edge = |i: usize| (x.points[i], x.points[(i + 1) % n]);
+    let y_edge = |j: usize| (y.points[j], y.points[(j + 1) % m]);
+    if n * m <= SMALL_RING * SMALL_RING {
+        return (0..n).any(|i| (0..m).any(|j| segments_touch(x_edge(i), y_edge(j), false)));
     }
-    let from_x = x.len();
-    let all: Vec<_> = edges(x).chain(edges(y)).collect();
-    let boxes: Vec<_> = all.iter().map(|&(a, b)| segment_bounds(a, b)).collect();
+    let boxes: Vec<_> = (0..n)
+        .map(x_edge)
+        .chain((0..m).map(y_edge))
+        .map(|(a, b)| segment_bounds(a, b))
+        .collect();
     // Only pairs with one edge from each ring.
     any_overlapping_pair(&boxes, |i, j| {
-        i < from_x && j >= from_x && segments_touch(all[i], all[j], false)
+        i < n && j >= n && segments_touch(x_edge(i), y_edge(j - n), false)
     })
 }
 

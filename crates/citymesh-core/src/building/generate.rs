@@ -156,9 +156,13 @@ pub fn generate_cluster(
         .filter(|v| !v.footprint.holes.is_empty() && !roofs[v.roof].is_planar())
         .map(|v| v.roof)
         .collect();
-    if !risky.is_empty()
-        && !check_closed(mesh, triangles..mesh.triangles.len()).is_closed_and_outward()
-    {
+    // Open edges or slivers are the fault; edges shared by four faces where buildings touch at
+    // a corner are not.
+    let broken = |mesh: &Mesh| {
+        let r = check_closed(mesh, triangles..mesh.triangles.len());
+        r.open_edges > 0 || r.degenerate > 0
+    };
+    if !risky.is_empty() && broken(mesh) {
         mesh.positions.truncate(positions);
         mesh.triangles.truncate(triangles);
         mesh.styles.truncate(triangles);
