@@ -24,7 +24,8 @@ CREATE TABLE generated_tiles (
     bytes        BLOB    NOT NULL,
     etag         TEXT    NOT NULL,
     created_at   INTEGER NOT NULL,
-    -- length(bytes), summed to keep the store under --tile-store-mb.
+    -- What the row costs on disk (length(bytes) and an estimate of page slack), summed to keep
+    -- the store under --tile-store-mb.
     size         INTEGER NOT NULL,
     -- Milliseconds since the epoch of the last write or SQLite hit: the least recently used
     -- tiles are evicted first.

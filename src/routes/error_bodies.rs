@@ -79,10 +79,12 @@ pub async fn json_errors(request: Request, next: Next) -> Response {
                 .and_then(|v| v.to_str().ok())
                 .unwrap_or("")
                 .to_owned();
-            (
-                "method_not_allowed",
-                format!("{path} does not answer {method}; it answers {allowed}"),
-            )
+            let detail = if allowed.is_empty() {
+                format!("{path} does not answer {method}; /docs lists the methods it answers")
+            } else {
+                format!("{path} does not answer {method}; it answers {allowed}")
+            };
+            ("method_not_allowed", detail)
         }
         StatusCode::REQUEST_TIMEOUT => (
             "timeout",
