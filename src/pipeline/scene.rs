@@ -9,7 +9,17 @@ use bytes::Bytes;
 use citymesh_core::building::set::BuildingSet;
 use citymesh_core::scene::{SceneArea, SceneRequest};
 use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
+
+/// Sets its flag when dropped.
+struct SetOnDrop(Arc<AtomicBool>);
+
+impl Drop for SetOnDrop {
+    fn drop(&mut self) {
+        self.0.store(true, Ordering::Relaxed);
+    }
+}
 
 /// A generated GLB and what went into it.
 pub struct Generated {
@@ -51,6 +61,10 @@ async fn generate_within(
     };
     let slot = generation_slot(state).await?;
     let dem = state.dem.clone();
+    // Set when this request is dropped (the client left, or the timeout fired): the blocking
+    // work then stops before its next group of buildings and frees its slot.
+    let gone = Arc::new(AtomicBool::new(false));
+    let _on_drop = SetOnDrop(gone.clone());
     let generated = tokio::task::spawn_blocking(move || {
         // The slot goes with the work (see `limits::run_blocking`).
         let _slot = slot;
@@ -66,7 +80,14 @@ async fn generate_within(
         }
         // Whole buildings may reach past the box: their ground must be loaded too.
         let lookup = dem.lookup(&request.terrain_bbox());
-        let mut output = request.generate(&lookup.model);
+        let stop = || gone.load(Ordering::Relaxed);
+        let Some(mut output) = request.generate_until(&lookup.model, &stop) else {
+            return Err(AppError::Unavailable {
+                code: "cancelled",
+                detail: "the request was abandoned before its scene was finished".to_owned(),
+                retry_after_secs: 1,
+            });
+        };
         // What the data had but could not be built, and what was built with less.
         for skip in &buildings.load_skips {
             output.buildings.skip(skip.id, skip.reason.name());

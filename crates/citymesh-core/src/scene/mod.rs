@@ -48,6 +48,30 @@ impl Scene {
         clusters: &[Vec<&BuildingRecord>],
         border: Border,
     ) -> Self {
+        Self::build(model, bbox, clusters, border, &|| false).0
+    }
+
+    /// Like [`Scene::new`], but asks `stop` before each group of buildings and gives up (`None`)
+    /// when it says so: a caller whose client has gone stops paying for the rest.
+    pub fn new_until(
+        model: &ElevationModel,
+        bbox: &GeoBbox,
+        clusters: &[Vec<&BuildingRecord>],
+        border: Border,
+        stop: &dyn Fn() -> bool,
+    ) -> Option<Self> {
+        let (scene, complete) = Self::build(model, bbox, clusters, border, stop);
+        complete.then_some(scene)
+    }
+
+    /// The scene, and whether it is complete (`stop` never said so).
+    fn build(
+        model: &ElevationModel,
+        bbox: &GeoBbox,
+        clusters: &[Vec<&BuildingRecord>],
+        border: Border,
+        stop: &dyn Fn() -> bool,
+    ) -> (Self, bool) {
         let (lon, lat) = bbox.center();
         let frame = LocalFrame::new(lon, lat, 0.0);
         let mut mesh = Mesh::default();
@@ -59,18 +83,24 @@ impl Scene {
         };
         let mut buildings = BuildingStats::default();
         let mut cluster_triangles = Vec::with_capacity(clusters.len());
+        let mut complete = true;
         for cluster in clusters {
+            if stop() {
+                complete = false;
+                break;
+            }
             let start = mesh.triangles.len();
             generate_cluster(cluster, &ctx, &mut mesh, &mut buildings);
             cluster_triangles.push(start..mesh.triangles.len());
         }
-        Self {
+        let scene = Self {
             frame,
             mesh,
             ground,
             buildings,
             cluster_triangles,
-        }
+        };
+        (scene, complete)
     }
 
     /// The scene encoded as GLB with the given placement, its buildings' OSM ids recorded in

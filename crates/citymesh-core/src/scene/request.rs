@@ -112,9 +112,28 @@ impl SceneRequest<'_> {
 
     /// The scene over `model`, encoded.
     pub fn generate(&self, model: &ElevationModel) -> SceneOutput {
-        let scene = self.scene(model);
+        Self::output(self.scene(model), self.placement)
+    }
+
+    /// Like [`SceneRequest::generate`], but gives up (`None`) as soon as `stop` says so (asked
+    /// before each group of buildings, and before encoding).
+    pub fn generate_until(
+        &self,
+        model: &ElevationModel,
+        stop: &dyn Fn() -> bool,
+    ) -> Option<SceneOutput> {
+        let groups: Vec<_> = self
+            .groups
+            .iter()
+            .map(|c| self.set.cluster_records(c))
+            .collect();
+        let scene = Scene::new_until(model, &self.bbox, &groups, self.border, stop)?;
+        (!stop()).then(|| Self::output(scene, self.placement))
+    }
+
+    fn output(scene: Scene, placement: Placement) -> SceneOutput {
         SceneOutput {
-            glb: scene.encode(self.placement),
+            glb: scene.encode(placement),
             ground: scene.ground,
             buildings: scene.buildings,
         }
@@ -155,6 +174,26 @@ mod tests {
         assert_eq!(implicit, all);
         let with_content = set.implicit_tiles_with_content(&root, 3);
         assert!(with_content.len() > 1 && with_content.len() <= 64);
+    }
+
+    #[test]
+    fn generation_stops_when_asked_and_otherwise_matches() {
+        let city = generate_city(&ProceduralParams::default()).unwrap();
+        let set = BuildingSet::new(city.records);
+        let request = SceneArea::Given(city.bbox).request(&set).unwrap();
+        let model = ElevationModel::default();
+        assert!(request.generate_until(&model, &|| true).is_none());
+        // Asked once per group (and once before encoding): stopping half way gives nothing.
+        let asked = std::cell::Cell::new(0);
+        let half = request.groups.len() / 2;
+        let stop = || {
+            asked.set(asked.get() + 1);
+            asked.get() > half
+        };
+        assert!(request.generate_until(&model, &stop).is_none());
+        assert_eq!(asked.get(), half + 1);
+        let whole = request.generate_until(&model, &|| false).unwrap();
+        assert_eq!(whole.glb, request.generate(&model).glb);
     }
 
     #[test]
