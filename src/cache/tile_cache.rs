@@ -9,7 +9,7 @@ use bytes::Bytes;
 use citymesh_core::geo::GeoBbox;
 use std::future::Future;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU8, AtomicU64, Ordering};
 
 /// A tile ready to send: its bytes and their strong ETag (quoted).
 #[derive(Clone, Debug)]
@@ -54,6 +54,9 @@ pub struct TileCache {
     /// explicitly): generator version, DEM files, local OSM files.
     data_version: String,
     metrics: Arc<Metrics>,
+    /// Counts invalidations: a tile whose generation saw the count change may have been built
+    /// from data that changed meanwhile, so it is served but not kept.
+    epoch: AtomicU64,
 }
 
 impl TileCache {
@@ -76,6 +79,7 @@ impl TileCache {
             store,
             data_version,
             metrics,
+            epoch: AtomicU64::new(0),
         }
     }
 
@@ -93,6 +97,8 @@ impl TileCache {
     {
         // 0: memory hit (the init below did not run), 1: SQLite, 2: generated.
         let level = AtomicU8::new(0);
+        // Set when the data changed while this tile was generated.
+        let outdated = AtomicBool::new(false);
         let result = self
             .memory
             .try_get_with(key, async {
@@ -109,11 +115,16 @@ impl TileCache {
                 self.metrics.cache("memory", false);
                 self.metrics.cache("sqlite", false);
                 level.store(2, Ordering::Relaxed);
+                let epoch = self.epoch.load(Ordering::SeqCst);
                 let (bytes, stats) = generate().await?;
                 let etag = etag_of(&bytes);
-                self.store
-                    .put(&key, &self.data_version, &bytes, &etag)
-                    .await?;
+                if self.epoch.load(Ordering::SeqCst) == epoch {
+                    self.store
+                        .put(&key, &self.data_version, &bytes, &etag)
+                        .await?;
+                } else {
+                    outdated.store(true, Ordering::SeqCst);
+                }
                 Ok(CachedTile {
                     bytes,
                     etag: Arc::from(etag),
@@ -122,6 +133,9 @@ impl TileCache {
             })
             .await;
         let tile = result.map_err(|e: Arc<E>| (*e).clone())?;
+        if outdated.load(Ordering::SeqCst) {
+            self.memory.invalidate(&key).await;
+        }
         let level = match level.load(Ordering::Relaxed) {
             0 => {
                 self.metrics.cache("memory", true);
@@ -145,6 +159,7 @@ impl TileCache {
     /// Drops every cached tile whose ground overlaps `area`, in memory and in SQLite; answers
     /// how many stored tiles were deleted.
     pub async fn invalidate_area(&self, area: &GeoBbox) -> Result<u64, sqlx::Error> {
+        self.epoch.fetch_add(1, Ordering::SeqCst);
         let removed = self.store.delete_overlapping(area).await?;
         let area = *area;
         if let Err(e) = self
@@ -158,6 +173,7 @@ impl TileCache {
 
     /// Drops everything held in memory (a subscriber that missed announcements).
     pub fn invalidate_memory(&self) {
+        self.epoch.fetch_add(1, Ordering::SeqCst);
         self.memory.invalidate_all();
     }
 }
