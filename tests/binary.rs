@@ -3,9 +3,9 @@
 
 mod common;
 
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{Read, Write};
 use std::net::TcpStream;
-use std::process::{Command, Stdio};
+use std::process::Command;
 
 fn http_get(addr: &str, path: &str) -> (String, Vec<u8>) {
     let mut stream = TcpStream::connect(addr).unwrap();
@@ -26,24 +26,7 @@ fn http_get(addr: &str, path: &str) -> (String, Vec<u8>) {
 #[test]
 fn serve_answers_and_shuts_down_gracefully_on_sigterm() {
     let db = tempfile::tempdir().unwrap();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_citymesh"))
-        .args(["serve", "--offline", "--listen", "127.0.0.1:0", "--dem-dir"])
-        .arg(common::dem_dir())
-        .arg("--cache-db")
-        .arg(db.path().join("c.sqlite"))
-        .stdout(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
-    let addr = loop {
-        let line = lines
-            .next()
-            .expect("server exited before listening")
-            .unwrap();
-        if let Some(rest) = line.split("listening on http://").nth(1) {
-            break rest.split('/').next().unwrap().to_owned();
-        }
-    };
+    let (mut child, addr, lines) = common::serve_binary(db.path(), &[]);
     let (head, body) = http_get(&addr, "/health");
     assert!(head.starts_with("HTTP/1.1 200"), "{head}");
     let health: serde_json::Value = serde_json::from_slice(&body).unwrap();

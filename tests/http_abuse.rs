@@ -7,12 +7,11 @@ mod common;
 
 use axum::body::Body;
 use axum::http::{Request, StatusCode};
-use common::{app_with, data_dir, dem_dir, get, osm_bytes};
+use common::{app_with, dem_dir, get, osm_bytes, serve_binary};
 use http_body_util::BodyExt;
 use serde_json::{Value, json};
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{Read, Write};
 use std::net::TcpStream;
-use std::process::{Child, Command, Stdio};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Duration;
@@ -507,31 +506,6 @@ async fn start_up_says_what_to_fix_about_the_cache_database() {
     assert!(e.contains("is a file") && e.contains("--cache-db"), "{e}");
 }
 
-/// The real binary with tight connection limits; returns it and its address.
-fn serve_binary(db: &tempfile::TempDir, extra: &[&str]) -> (Child, String) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_citymesh"))
-        .args(["serve", "--offline", "--listen", "127.0.0.1:0", "--dem-dir"])
-        .arg(dem_dir())
-        .arg("--cache-db")
-        .arg(db.path().join("c.sqlite"))
-        .args(extra)
-        .stdout(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
-    let addr = loop {
-        let line = lines
-            .next()
-            .expect("server exited before listening")
-            .unwrap();
-        if let Some(rest) = line.split("listening on http://").nth(1) {
-            break rest.split('/').next().unwrap().to_owned();
-        }
-    };
-    std::thread::spawn(move || for _ in lines {});
-    (child, addr)
-}
-
 /// Whether the server closes the connection before `bound` (reads return end of file or reset).
 fn closed_by_server(mut stream: TcpStream, bound: Duration) -> bool {
     stream.set_read_timeout(Some(bound)).unwrap();
@@ -554,9 +528,8 @@ fn closed_by_server(mut stream: TcpStream, bound: Duration) -> bool {
 #[test]
 fn d3_half_sent_headers_idle_connections_and_the_connection_cap() {
     let db = tempfile::tempdir().unwrap();
-    let _ = data_dir();
-    let (mut child, addr) = serve_binary(
-        &db,
+    let (mut child, addr, log) = serve_binary(
+        db.path(),
         &[
             "--header-timeout-s",
             "1",
@@ -568,6 +541,8 @@ fn d3_half_sent_headers_idle_connections_and_the_connection_cap() {
             "2",
         ],
     );
+    // Keep reading the log so the server never blocks on a full pipe.
+    std::thread::spawn(move || log.for_each(drop));
     // A half-sent request header is dropped after the header timeout.
     let mut half = TcpStream::connect(&addr).unwrap();
     half.write_all(b"GET /health HTTP/1.1\r\nHost: x\r\n")

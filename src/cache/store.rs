@@ -42,6 +42,30 @@ fn now_ms() -> i64 {
         .map_or(0, |d| i64::try_from(d.as_millis()).unwrap_or(i64::MAX))
 }
 
+/// The condition that selects one key's row; [`bind_key`] binds its values in this order.
+macro_rules! key_where {
+    () => {
+        "scheme = ? AND region = ? AND z = ? AND x = ? AND y = ? AND encoding = ? AND roofs = ? \
+         AND data_version = ?"
+    };
+}
+
+type Query<'q> = sqlx::query::Query<'q, sqlx::Sqlite, sqlx::sqlite::SqliteArguments>;
+
+/// Binds a key's columns, in the order of `key_where!`.
+fn bind_key<'q>(query: Query<'q>, key: &'q TileKey, data_version: &'q str) -> Query<'q> {
+    let (scheme, region, z, x, y) = columns(key);
+    query
+        .bind(scheme)
+        .bind(region)
+        .bind(z)
+        .bind(x)
+        .bind(y)
+        .bind(key.encoding.as_str())
+        .bind(key.roofs.as_str())
+        .bind(data_version)
+}
+
 /// The key's columns: scheme, region text, z, x, y.
 fn columns(key: &TileKey) -> (&'static str, String, i64, i64, i64) {
     let scheme = key.tile.scheme();
@@ -96,34 +120,22 @@ impl TileStore {
         self.used.load(Ordering::Relaxed)
     }
 
+    /// The stored tile, marked as just used.
     pub async fn get(
         &self,
         key: &TileKey,
         data_version: &str,
     ) -> Result<Option<StoredTile>, sqlx::Error> {
-        let (scheme, region, z, x, y) = columns(key);
-        let row = sqlx::query(
-            "SELECT bytes, etag, rowid FROM generated_tiles WHERE scheme = ? AND region = ? AND z = ? \
-             AND x = ? AND y = ? AND encoding = ? AND roofs = ? AND data_version = ?",
-        )
-        .bind(scheme)
-        .bind(region)
-        .bind(z)
-        .bind(x)
-        .bind(y)
-        .bind(key.encoding.as_str())
-        .bind(key.roofs.as_str())
-        .bind(data_version)
-        .fetch_optional(&self.pool)
-        .await?;
-        let Some(row) = row else { return Ok(None) };
-        let rowid: i64 = row.get(2);
-        sqlx::query("UPDATE generated_tiles SET last_used = ? WHERE rowid = ?")
-            .bind(now_ms())
-            .bind(rowid)
-            .execute(&self.pool)
+        let query = sqlx::query(concat!(
+            "UPDATE generated_tiles SET last_used = ? WHERE ",
+            key_where!(),
+            " RETURNING bytes, etag"
+        ))
+        .bind(now_ms());
+        let row = bind_key(query, key, data_version)
+            .fetch_optional(&self.pool)
             .await?;
-        Ok(Some(StoredTile {
+        Ok(row.map(|row| StoredTile {
             bytes: Bytes::from(row.get::<Vec<u8>, _>(0)),
             etag: row.get(1),
         }))
@@ -136,53 +148,43 @@ impl TileStore {
         bytes: &[u8],
         etag: &str,
     ) -> Result<(), sqlx::Error> {
-        let (scheme, region, z, x, y) = columns(key);
         let b = key.tile.bounds();
         let now = now_ms();
-        let replaced: Option<i64> = sqlx::query(
-            "DELETE FROM generated_tiles WHERE scheme = ? AND region = ? AND z = ? AND x = ? \
-             AND y = ? AND encoding = ? AND roofs = ? AND data_version = ? RETURNING size",
+        let cost = bytes.len() as i64 + ROW_OVERHEAD;
+        // Replacing a row: its cost leaves the count first.
+        let replaced: Option<i64> = bind_key(
+            sqlx::query(concat!(
+                "DELETE FROM generated_tiles WHERE ",
+                key_where!(),
+                " RETURNING size"
+            )),
+            key,
+            data_version,
         )
-        .bind(scheme)
-        .bind(&region)
-        .bind(z)
-        .bind(x)
-        .bind(y)
-        .bind(key.encoding.as_str())
-        .bind(key.roofs.as_str())
-        .bind(data_version)
         .fetch_optional(&self.pool)
         .await?
         .map(|r| r.get(0));
         if let Some(size) = replaced {
             self.forget(size);
         }
-        sqlx::query(
-            "INSERT OR REPLACE INTO generated_tiles (scheme, region, z, x, y, encoding, roofs, \
-             data_version, west, south, east, north, bytes, etag, created_at, size, last_used) \
+        let insert = sqlx::query(
+            "INSERT INTO generated_tiles (scheme, region, z, x, y, encoding, roofs, data_version, \
+             west, south, east, north, bytes, etag, created_at, size, last_used) \
              VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-        )
-        .bind(scheme)
-        .bind(region)
-        .bind(z)
-        .bind(x)
-        .bind(y)
-        .bind(key.encoding.as_str())
-        .bind(key.roofs.as_str())
-        .bind(data_version)
-        .bind(b.min_lon())
-        .bind(b.min_lat())
-        .bind(b.max_lon())
-        .bind(b.max_lat())
-        .bind(bytes)
-        .bind(etag)
-        .bind(now / 1000)
-        .bind(bytes.len() as i64 + ROW_OVERHEAD)
-        .bind(now)
-        .execute(&self.pool)
-        .await?;
-        self.used
-            .fetch_add(bytes.len() as u64 + ROW_OVERHEAD as u64, Ordering::Relaxed);
+        );
+        bind_key(insert, key, data_version)
+            .bind(b.min_lon())
+            .bind(b.min_lat())
+            .bind(b.max_lon())
+            .bind(b.max_lat())
+            .bind(bytes)
+            .bind(etag)
+            .bind(now / 1000)
+            .bind(cost)
+            .bind(now)
+            .execute(&self.pool)
+            .await?;
+        self.used.fetch_add(cost as u64, Ordering::Relaxed);
         self.evict_if_over().await
     }
 
@@ -248,13 +250,5 @@ impl TileStore {
         let removed = sizes.len() as u64;
         sizes.into_iter().for_each(|s| self.forget(s));
         Ok(removed)
-    }
-
-    /// Number of stored tiles.
-    pub async fn count(&self) -> Result<i64, sqlx::Error> {
-        sqlx::query("SELECT COUNT(*) FROM generated_tiles")
-            .fetch_one(&self.pool)
-            .await
-            .map(|r| r.get(0))
     }
 }

@@ -36,7 +36,8 @@ fn header_bytes(headers: &HeaderMap) -> usize {
 
 /// Refuses over-long requests, and gives every error answer without a JSON body one.
 pub async fn json_errors(request: Request, next: Next) -> Response {
-    let uri_len = request.uri().to_string().len();
+    let uri = request.uri();
+    let uri_len = uri.path().len() + uri.query().map_or(0, |q| q.len() + 1);
     if uri_len > MAX_URI_BYTES {
         return json_error(
             StatusCode::URI_TOO_LONG,
@@ -56,7 +57,8 @@ pub async fn json_errors(request: Request, next: Next) -> Response {
             ),
         );
     }
-    let (method, path) = (request.method().clone(), request.uri().path().to_owned());
+    // Kept for an error's detail; cloning them does not allocate (shared bytes).
+    let (method, uri) = (request.method().clone(), request.uri().clone());
     let response = next.run(request).await;
     let status = response.status();
     let is_json = response
@@ -67,6 +69,7 @@ pub async fn json_errors(request: Request, next: Next) -> Response {
     if !(status.is_client_error() || status.is_server_error()) || is_json {
         return response;
     }
+    let path = uri.path();
     let (code, detail) = match status {
         StatusCode::NOT_FOUND => (
             "not_found",

@@ -10,10 +10,21 @@ use axum::http::{HeaderValue, header};
 use axum::response::{Html, IntoResponse, Response};
 use citymesh_core::procedural::{DEFAULT_LAT, DEFAULT_LON};
 
-const VIEWER_HTML: &str = include_str!("pages/viewer.html");
+use std::sync::LazyLock;
+
 const VIEWER_JS: &str = include_str!("pages/viewer.js");
-const CESIUM_HTML: &str = include_str!("pages/cesium.html");
-const TILES_RENDERER_HTML: &str = include_str!("pages/tiles3d-renderer.html");
+/// What every page shows when its libraries do not load, shared by the three pages.
+const ASSETS_MISSING_JS: &str = include_str!("pages/assets-missing.js");
+
+/// A page with the shared script put in its place.
+fn page(html: &str) -> String {
+    html.replace("__ASSETS_MISSING__", ASSETS_MISSING_JS)
+}
+
+static VIEWER_HTML: LazyLock<String> = LazyLock::new(|| page(include_str!("pages/viewer.html")));
+static CESIUM_HTML: LazyLock<String> = LazyLock::new(|| page(include_str!("pages/cesium.html")));
+static TILES_RENDERER_HTML: LazyLock<String> =
+    LazyLock::new(|| page(include_str!("pages/tiles3d-renderer.html")));
 
 /// The three.js viewer.
 ///
@@ -67,7 +78,7 @@ pub async fn viewer_js() -> Response {
         (status = 404, description = "Never: listed because every operation names its client errors", body = ErrorBody),
     ))]
 pub async fn cesium() -> Html<&'static str> {
-    Html(CESIUM_HTML)
+    Html(CESIUM_HTML.as_str())
 }
 
 /// The 3d-tiles-renderer page: this server's 3D Tiles in three.js.
@@ -77,5 +88,5 @@ pub async fn cesium() -> Html<&'static str> {
         (status = 404, description = "Never: listed because every operation names its client errors", body = ErrorBody),
     ))]
 pub async fn tiles_renderer() -> Html<&'static str> {
-    Html(TILES_RENDERER_HTML)
+    Html(TILES_RENDERER_HTML.as_str())
 }

@@ -11,7 +11,6 @@ use axum::extract::{Path, State};
 use axum::http::HeaderMap;
 use axum::response::Response;
 use citymesh_core::geo::TileCoord;
-use citymesh_core::scene::SceneArea;
 
 /// One XYZ tile as binary glTF.
 ///
@@ -59,10 +58,11 @@ pub async fn tile_glb(
             ),
         ));
     }
+    let key = TileKey::xyz(tile);
     let (cached, level) = state
         .tiles
-        .get_or_generate(TileKey::xyz(tile), || async {
-            let g = generate(&state, SceneArea::Xyz(tile), Buildings::FromSource).await?;
+        .get_or_generate(key, || async {
+            let g = generate(&state, key.tile.area(), Buildings::FromSource).await?;
             Ok::<_, AppError>((g.glb, g.stats))
         })
         .await?;

@@ -15,7 +15,6 @@ use axum::extract::{Path, Query, State};
 use axum::http::{HeaderMap, header};
 use axum::response::{IntoResponse, Response};
 use citymesh_core::geo::{GeoBbox, ImplicitTile};
-use citymesh_core::scene::SceneArea;
 use citymesh_core::tiles3d::{ImplicitLayout, tileset_json};
 use serde::Deserialize;
 use utoipa::IntoParams;
@@ -180,12 +179,12 @@ pub async fn content(
             "this tile has no content (see the subtree's availability)",
         ));
     }
-    let area = SceneArea::Implicit { root, tile };
+    let key = TileKey::implicit(root, tile);
     // Errors (a tile without content among them) are never cached.
     let (cached, level) = state
         .tiles
-        .get_or_generate(TileKey::implicit(root, tile), || async {
-            let g = generate(&state, area, Buildings::FromSource).await?;
+        .get_or_generate(key, || async {
+            let g = generate(&state, key.tile.area(), Buildings::FromSource).await?;
             Ok::<_, AppError>((g.glb, g.stats))
         })
         .await?;

@@ -172,3 +172,32 @@ pub fn glb_positions(glb: &[u8]) -> (Vec<[f64; 3]>, serde_json::Value) {
     }
     (out, extras["origin"].clone())
 }
+
+/// The log lines of a server started by [`serve_binary`].
+pub type ServerLog = std::io::Lines<std::io::BufReader<std::process::ChildStdout>>;
+
+/// Starts the real binary (`citymesh serve --offline` on a free port, real DEM files, a database
+/// in `db`, then `extra`); answers it, its address and the rest of its log.
+pub fn serve_binary(db: &Path, extra: &[&str]) -> (std::process::Child, String, ServerLog) {
+    use std::io::BufRead;
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_citymesh"))
+        .args(["serve", "--offline", "--listen", "127.0.0.1:0", "--dem-dir"])
+        .arg(dem_dir())
+        .arg("--cache-db")
+        .arg(db.join("c.sqlite"))
+        .args(extra)
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut lines = std::io::BufReader::new(child.stdout.take().unwrap()).lines();
+    let addr = loop {
+        let line = lines
+            .next()
+            .expect("server exited before listening")
+            .unwrap();
+        if let Some(rest) = line.split("listening on http://").nth(1) {
+            break rest.split('/').next().unwrap().to_owned();
+        }
+    };
+    (child, addr, lines)
+}

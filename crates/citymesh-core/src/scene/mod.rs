@@ -118,9 +118,4 @@ impl Scene {
     pub fn to_glb(&self) -> Vec<u8> {
         self.encode(Placement::LocalEnu).bytes
     }
-
-    /// The scene as 3D Tiles content: ECEF positions relative to the scene centre's ECEF point.
-    pub fn to_glb_ecef(&self) -> Vec<u8> {
-        self.encode(Placement::Ecef).bytes
-    }
 }

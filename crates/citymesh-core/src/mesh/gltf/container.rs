@@ -1,13 +1,8 @@
 //! Stage 4 of the encoder: the GLB container (glTF 2.0 binary): a 12-byte header, the JSON chunk
 //! padded with spaces and the BIN chunk padded with zeros, each to 4 bytes.
 
-/// Wraps a JSON document and a binary buffer into a GLB. An empty buffer gets no BIN chunk.
-pub fn write_container(json: Vec<u8>, bin: &[u8]) -> Vec<u8> {
-    write_container_with(json, bin.len(), |out| out.extend_from_slice(bin))
-}
-
 /// Wraps a JSON document and a binary buffer of `bin_len` bytes, which `write_bin` appends to
-/// the output in place (no intermediate copy), into a GLB.
+/// the output in place (no intermediate copy), into a GLB. An empty buffer gets no BIN chunk.
 pub fn write_container_with(
     mut json: Vec<u8>,
     bin_len: usize,
@@ -47,7 +42,9 @@ mod tests {
 
     #[test]
     fn chunks_are_padded_and_lengths_add_up() {
-        let glb = write_container(b"{}".to_vec(), &[1, 2, 3, 4, 5]);
+        let glb = write_container_with(b"{}".to_vec(), 5, |out| {
+            out.extend_from_slice(&[1, 2, 3, 4, 5]);
+        });
         // 12 header + 8 + 4 JSON ("{}  ") + 8 + 8 BIN (5 bytes + 3 zeros).
         assert_eq!(glb.len(), 40);
         assert_eq!(&glb[0..4], b"glTF");
@@ -55,6 +52,6 @@ mod tests {
         assert_eq!(&glb[20..24], b"{}  ");
         assert_eq!(&glb[28..32], b"BIN\0");
         assert_eq!(&glb[32..40], &[1, 2, 3, 4, 5, 0, 0, 0]);
-        assert_eq!(write_container(b"{}".to_vec(), &[]).len(), 24);
+        assert_eq!(write_container_with(b"{}".to_vec(), 0, |_| {}).len(), 24);
     }
 }

@@ -14,7 +14,7 @@ mod document;
 mod layout;
 mod placement;
 
-pub use container::{write_container, write_container_with};
+pub use container::write_container_with;
 pub use layout::{IndexedLayout, LayoutPrimitive};
 pub use placement::{Placed, Placement, place};
 
