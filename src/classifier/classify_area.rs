@@ -1,0 +1,196 @@
+//! `citymesh classify`: the roofs of OSM buildings from an imagery service, as the server's jobs
+//! run them (same queue, same database), in the foreground with a progress bar.
+
+use super::{Prediction, load_classifier};
+use crate::cli::ClassifyArgs;
+use crate::imagery::{ImagerySpec, XyzImagery};
+use crate::jobs::worker::{WorkerConfig, run_round};
+use crate::jobs::{
+    RoofJobQueue, Selection, SqliteJobQueue, StoredPrediction, footprint_hash, select_buildings,
+};
+use crate::source::read_osm_file;
+use citymesh_core::building::roof::RoofShape;
+use citymesh_core::geo::GeoBbox;
+use citymesh_core::osm::read_buildings;
+use citymesh_core::roof_image::RoofClass;
+use serde_json::json;
+use std::collections::{BTreeMap, HashMap};
+
+/// Runs the command; returns the summary it prints.
+pub async fn run(args: &ClassifyArgs) -> anyhow::Result<String> {
+    let bbox: Option<GeoBbox> = args
+        .bbox
+        .as_deref()
+        .map(str::parse)
+        .transpose()
+        .map_err(|e| anyhow::anyhow!("--bbox: {e}"))?;
+    let mut records = Vec::new();
+    for path in &args.osm {
+        let bytes = read_osm_file(path)?;
+        let osm = read_buildings(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        records.extend(osm.buildings);
+    }
+    if let Some(b) = &bbox {
+        records.retain(|r| {
+            r.outers
+                .first()
+                .and_then(|o| o.nodes.first())
+                .is_some_and(|n| b.contains(n.lon, n.lat))
+        });
+    }
+    let classifier = load_classifier(
+        args.classifier.onnxruntime_lib.as_deref(),
+        args.classifier.roof_model.as_deref(),
+    )?;
+    let mut spec = ImagerySpec::xyz(&args.imagery_id, &args.imagery_url);
+    spec.max_zoom = args.imagery_max_zoom;
+    spec.tile_size = args.imagery_tile_size;
+    spec.attribution.clone_from(&args.imagery_attribution);
+    let imagery = XyzImagery::new(spec)?;
+    let queue = SqliteJobQueue::new(crate::db::open(&args.cache_db).await?);
+    let selection = if args.all {
+        Selection::All
+    } else {
+        Selection::Untagged
+    };
+    let (jobs, skipped) = select_buildings(&records, selection);
+    let tags: HashMap<String, Option<String>> = records
+        .iter()
+        .map(|r| (r.id.to_string(), r.tags.get("roof:shape").cloned()))
+        .collect();
+    let area = bbox.map_or_else(|| "files".to_owned(), |b| b.to_string());
+    let (batch, counts) = queue
+        .enqueue(
+            &area,
+            &imagery.spec().id,
+            classifier.model_id(),
+            &jobs,
+            skipped,
+        )
+        .await?;
+    let bar = if args.quiet {
+        indicatif::ProgressBar::hidden()
+    } else {
+        indicatif::ProgressBar::new(jobs.len() as u64)
+    };
+    let started = std::time::Instant::now();
+    let config = WorkerConfig::default();
+    loop {
+        let round = run_round(&queue, &imagery, &classifier, config).await?;
+        let progress = queue
+            .progress(batch)
+            .await?
+            .ok_or_else(|| anyhow::anyhow!("batch {batch} vanished"))?;
+        let ended = progress.jobs["done"] + progress.jobs["failed"] + progress.jobs["cancelled"];
+        bar.set_position(ended + counts.already);
+        if progress.finished || round.is_none() {
+            break;
+        }
+    }
+    bar.finish_and_clear();
+    let seconds = started.elapsed().as_secs_f64();
+    let progress = queue
+        .progress(batch)
+        .await?
+        .ok_or_else(|| anyhow::anyhow!("batch {batch} vanished"))?;
+
+    // The predictions of this batch's buildings (made now or before, for the same inputs).
+    let wanted: HashMap<(String, String), &Vec<[f64; 2]>> = jobs
+        .iter()
+        .map(|j| {
+            (
+                (j.osm_id.clone(), footprint_hash(&j.footprint)),
+                &j.footprint,
+            )
+        })
+        .collect();
+    // Each prediction with its building's roof:shape tag.
+    let mut results: Vec<(Option<String>, StoredPrediction)> = Vec::new();
+    if let Some(area) = area_of(&jobs) {
+        for p in queue.predictions(&area, u32::MAX).await? {
+            if p.imagery_id == imagery.spec().id
+                && p.model_id == classifier.model_id()
+                && wanted.contains_key(&(p.osm_id.clone(), p.footprint_hash.clone()))
+            {
+                let tag = tags.get(&p.osm_id).cloned().flatten();
+                results.push((tag, p));
+            }
+        }
+    }
+    let features: Vec<serde_json::Value> = results
+        .iter()
+        .map(|(tag, stored)| {
+            let (id, p) = (&stored.osm_id, &stored.prediction);
+            let mut ring = stored.footprint.clone();
+            if let Some(&first) = ring.first() {
+                ring.push(first);
+            }
+            json!({
+                "type": "Feature",
+                "geometry": {"type": "Polygon", "coordinates": [ring]},
+                "properties": {
+                    "osm_id": id,
+                    "roof_shape_tag": tag,
+                    "class": p.class().name(),
+                    "probabilities": RoofClass::ALL.iter().map(|c| (c.name(), p.probabilities[c.index()])).collect::<BTreeMap<_, _>>(),
+                    "imagery": imagery.spec().id,
+                    "imagery_attribution": imagery.spec().attribution,
+                    "model_id": classifier.model_id(),
+                }
+            })
+        })
+        .collect();
+    let collection = json!({"type": "FeatureCollection", "features": features});
+    std::fs::write(&args.out, serde_json::to_vec_pretty(&collection)?)?;
+    let pairs: Vec<(Option<String>, Prediction)> = results
+        .iter()
+        .map(|(t, p)| (t.clone(), p.prediction))
+        .collect();
+    Ok(format!(
+        "batch {batch}: {} jobs queued, {} already queued or done, skipped {:?}; jobs {:?}; \
+         {} predictions in {seconds:.1} s; wrote {}\n{}",
+        counts.queued,
+        counts.already,
+        counts.skipped,
+        progress.jobs,
+        results.len(),
+        args.out.display(),
+        agreement(&pairs)
+    ))
+}
+
+/// The box around every job's footprint.
+fn area_of(jobs: &[crate::jobs::NewJob]) -> Option<GeoBbox> {
+    let (mut lo, mut hi) = ([f64::MAX; 2], [f64::MIN; 2]);
+    for p in jobs.iter().flat_map(|j| &j.footprint) {
+        for k in 0..2 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    GeoBbox::new(lo[0], lo[1], hi[0], hi[1]).ok()
+}
+
+/// How predictions agree with the tags that name one of the three classes.
+pub fn agreement(results: &[(Option<String>, Prediction)]) -> String {
+    let mut confusion = [[0usize; 3]; 3];
+    for (tag, p) in results {
+        if let Some(t) = tag
+            .as_deref()
+            .and_then(RoofShape::from_tag)
+            .and_then(RoofClass::of_shape)
+        {
+            confusion[t.index()][p.class().index()] += 1;
+        }
+    }
+    let compared: usize = confusion.iter().flatten().sum();
+    if compared == 0 {
+        return "no tagged building to compare with".into();
+    }
+    let agree: usize = (0..3).map(|i| confusion[i][i]).sum();
+    format!(
+        "agreement with roof:shape tags: {agree}/{compared} = {:.1} %; confusion (rows: tag \
+         flat, gabled, hipped; columns: predicted): {confusion:?}",
+        100.0 * agree as f64 / compared as f64
+    )
+}

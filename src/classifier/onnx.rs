@@ -1,0 +1,183 @@
+//! [`RoofClassifier`] with an ONNX model run by ONNX Runtime (`ort`, loaded dynamically).
+
+use super::{ClassifierError, Prediction, RoofClassifier, model_id_of};
+use citymesh_core::roof_image::Crop;
+use ort::environment::Environment;
+use ort::session::Session;
+use ort::value::Tensor;
+use std::path::Path;
+use std::sync::{Mutex, OnceLock};
+
+/// Crops per inference call at most (each run as its 8 turns and flips).
+pub const MAX_BATCH: usize = 16;
+
+/// The 8 turns and flips of a square crop: every element of the dihedral group, whose answers
+/// are averaged (the model was trained on all of them; averaging makes the answer independent of
+/// how the crop happens to be turned).
+const TURNS: [(bool, u8); 8] = [
+    (false, 0),
+    (false, 1),
+    (false, 2),
+    (false, 3),
+    (true, 0),
+    (true, 1),
+    (true, 2),
+    (true, 3),
+];
+
+/// `tensor` (C x n x n, planar) flipped left-right when `flip`, then turned `k` quarter turns.
+fn turned(tensor: &[f32], n: usize, flip: bool, k: u8, out: &mut Vec<f32>) {
+    let plane = n * n;
+    for c in 0..tensor.len() / plane {
+        let src = &tensor[c * plane..(c + 1) * plane];
+        for i in 0..n {
+            for j in 0..n {
+                let (a, b) = match k {
+                    0 => (i, j),
+                    1 => (j, n - 1 - i),
+                    2 => (n - 1 - i, n - 1 - j),
+                    _ => (n - 1 - j, i),
+                };
+                let b = if flip { n - 1 - b } else { b };
+                out.push(src[a * n + b]);
+            }
+        }
+    }
+}
+
+/// The model, loaded into an ONNX Runtime session.
+pub struct OnnxClassifier {
+    // The session needs the environment alive.
+    _environment: Environment,
+    session: Mutex<Session>,
+    model_id: String,
+    size: usize,
+}
+
+/// The runtime library and its environment, once per process (ONNX Runtime allows one
+/// environment): later loads must name the same file and share the environment.
+static LOADED: OnceLock<Result<(std::path::PathBuf, Environment), String>> = OnceLock::new();
+
+impl OnnxClassifier {
+    /// Loads ONNX Runtime from `library` (once per process) and the model from its bytes, which
+    /// take crops of `size` pixels. One intra-op thread: callers parallelise across requests.
+    pub fn load(library: &Path, model: &[u8], size: usize) -> Result<Self, ClassifierError> {
+        let loaded = LOADED.get_or_init(|| {
+            let builder = ort::init_from(library)
+                .map_err(|e| format!("could not load {}: {e}", library.display()))?;
+            let environment = builder
+                .with_name("citymesh")
+                .build()
+                .map_err(|e| format!("ONNX Runtime from {}: {e}", library.display()))?;
+            Ok((library.to_path_buf(), environment))
+        });
+        let environment = match loaded {
+            Ok((path, environment)) if path == library => environment.clone(),
+            Ok((path, _)) => {
+                return Err(ClassifierError::Runtime(format!(
+                    "ONNX Runtime is already loaded from {}",
+                    path.display()
+                )));
+            }
+            Err(e) => return Err(ClassifierError::Runtime(e.clone())),
+        };
+        let session = Session::builder(&environment)
+            .map_err(|e| ClassifierError::Runtime(e.to_string()))?
+            .with_intra_threads(1)
+            .map_err(|e| ClassifierError::Runtime(e.to_string()))?
+            .commit_from_memory(model)
+            .map_err(|e| ClassifierError::Model(e.to_string()))?;
+        Ok(Self {
+            _environment: environment,
+            session: Mutex::new(session),
+            model_id: model_id_of(model),
+            size,
+        })
+    }
+}
+
+impl RoofClassifier for OnnxClassifier {
+    fn model_id(&self) -> &str {
+        &self.model_id
+    }
+
+    fn crop_size(&self) -> usize {
+        self.size
+    }
+
+    fn classify(&self, crops: &[Crop]) -> Result<Vec<Prediction>, ClassifierError> {
+        let mut out = Vec::with_capacity(crops.len());
+        for batch in crops.chunks(MAX_BATCH) {
+            let n = self.size * self.size;
+            let rows = batch.len() * TURNS.len();
+            let mut input = Vec::with_capacity(rows * 4 * n);
+            for crop in batch {
+                if crop.size != self.size {
+                    return Err(ClassifierError::Input(format!(
+                        "crop of {} px; the model takes {} px",
+                        crop.size, self.size
+                    )));
+                }
+                let tensor = crop.tensor();
+                for (flip, k) in TURNS {
+                    turned(&tensor, self.size, flip, k, &mut input);
+                }
+            }
+            let shape = [rows, 4, self.size, self.size];
+            let tensor = Tensor::from_array((shape, input))
+                .map_err(|e| ClassifierError::Runtime(e.to_string()))?;
+            let mut session = self
+                .session
+                .lock()
+                .map_err(|_| ClassifierError::Runtime("the session lock was poisoned".into()))?;
+            let outputs = session
+                .run(ort::inputs!["crops" => tensor])
+                .map_err(|e| ClassifierError::Model(e.to_string()))?;
+            let (shape, probs) = outputs["probabilities"]
+                .try_extract_tensor::<f32>()
+                .map_err(|e| ClassifierError::Model(e.to_string()))?;
+            if shape.len() != 2 || shape[1] != 3 || probs.len() != 3 * rows {
+                return Err(ClassifierError::Model(format!(
+                    "unexpected output shape {shape:?}"
+                )));
+            }
+            out.extend(probs.chunks_exact(3 * TURNS.len()).map(|turns| {
+                let mut mean = [0.0f32; 3];
+                for p in turns.chunks_exact(3) {
+                    for k in 0..3 {
+                        mean[k] += p[k] / TURNS.len() as f32;
+                    }
+                }
+                Prediction::new(mean)
+            }));
+        }
+        Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_eight_turns_are_distinct_and_a_quarter_turn_is_counter_clockwise() {
+        // 2 x 2: [a b; c d] turned a quarter counter-clockwise is [b d; a c] (numpy's rot90).
+        let t = [1.0, 2.0, 3.0, 4.0];
+        let mut out = Vec::new();
+        turned(&t, 2, false, 1, &mut out);
+        assert_eq!(out, [2.0, 4.0, 1.0, 3.0]);
+        let mut all: Vec<Vec<f32>> = Vec::new();
+        let t3: Vec<f32> = (0..9).map(|v| v as f32).collect();
+        for (flip, k) in TURNS {
+            let mut o = Vec::new();
+            turned(&t3, 3, flip, k, &mut o);
+            let mut sorted = o.clone();
+            sorted.sort_by(f32::total_cmp);
+            assert_eq!(sorted, t3, "a turn keeps every pixel");
+            all.push(o);
+        }
+        all.sort_by(|a, b| a.partial_cmp(b).unwrap());
+        all.dedup();
+        assert_eq!(all.len(), 8);
+    }
+}

@@ -1,0 +1,82 @@
+//! Imagery for the roof classifier: XYZ tile services configured by the operator (never named by a
+//! request, so a client cannot make citymesh fetch from anywhere), fetched politely: a User-Agent,
+//! a cap on requests in flight, a timeout, retries with doubling backoff on 429, 5xx and timeouts,
+//! a size limit, and only whole images of the expected size accepted.
+
+mod crops;
+mod xyz;
+
+pub use crops::{CropFailure, MAX_TILES_PER_BUILDING, TileMemo, crop_footprint};
+pub use xyz::{XyzImagery, quadkey};
+
+/// One imagery service.
+#[derive(Debug, Clone)]
+pub struct ImagerySpec {
+    /// A short name for results and logs.
+    pub id: String,
+    /// URL template with `{z}`, `{x}`, `{y}` (or `{-y}`, the TMS row from the south), or `{q}`
+    /// (a Bing-style quadkey).
+    pub url: String,
+    /// Deepest zoom the service has.
+    pub max_zoom: u8,
+    /// Tile side in pixels.
+    pub tile_size: u32,
+    /// Whom to credit; reported with every result.
+    pub attribution: String,
+    /// Requests in flight at most.
+    pub max_concurrent: usize,
+    /// Retries after the first attempt.
+    pub retries: u32,
+    /// Seconds one request may take.
+    pub timeout_s: f64,
+    /// Largest tile accepted, bytes.
+    pub max_bytes: u64,
+}
+
+impl ImagerySpec {
+    /// A spec with polite defaults for a URL template.
+    pub fn xyz(id: &str, url: &str) -> Self {
+        Self {
+            id: id.to_owned(),
+            url: url.to_owned(),
+            max_zoom: 19,
+            tile_size: 256,
+            attribution: String::new(),
+            max_concurrent: 4,
+            retries: 2,
+            timeout_s: 15.0,
+            max_bytes: 4 << 20,
+        }
+    }
+}
+
+/// Why a tile could not be had.
+#[derive(Debug, Clone, thiserror::Error)]
+pub enum ImageryError {
+    #[error("the imagery service has no tile here (HTTP 404)")]
+    NotFound,
+    #[error("the imagery service is rate limiting or overloaded (HTTP {0})")]
+    Busy(u16),
+    #[error("the imagery service did not answer within {0} s")]
+    Timeout(f64),
+    #[error("the imagery tile is larger than {0} bytes")]
+    TooLarge(u64),
+    #[error("the imagery tile is not a {expected}x{expected} PNG or JPEG: {detail}")]
+    NotAnImage { expected: u32, detail: String },
+    #[error("the imagery service failed: {0}")]
+    Bad(String),
+}
+
+impl ImageryError {
+    /// A stable short name for reasons and metrics.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            ImageryError::NotFound => "not_found",
+            ImageryError::Busy(_) => "busy",
+            ImageryError::Timeout(_) => "timeout",
+            ImageryError::TooLarge(_) => "too_large",
+            ImageryError::NotAnImage { .. } => "not_an_image",
+            ImageryError::Bad(_) => "bad_response",
+        }
+    }
+}

@@ -1,0 +1,19 @@
+//! Queued roof-classification jobs (docs/method.md section 11): batches of buildings to classify,
+//! kept in SQLite so nothing is lost on a crash, claimed by workers under a lease so a worker that
+//! dies leaves its jobs to another, and the predictions they store.
+//!
+//! [`RoofJobQueue`] is the queue's contract; [`SqliteJobQueue`] implements it on the cache
+//! database (a PostgreSQL queue would implement the same methods with `FOR UPDATE SKIP LOCKED`).
+//! [`worker`] runs jobs: imagery, crop, inference, store.
+
+mod queue;
+mod select;
+mod sqlite;
+pub mod worker;
+
+pub use queue::{
+    BatchCounts, BatchProgress, ClaimedJob, JobError, NewJob, RoofJobQueue, StoredPrediction,
+    footprint_hash,
+};
+pub use select::{Selection, select_buildings};
+pub use sqlite::SqliteJobQueue;

@@ -1,0 +1,289 @@
+//! [`RoofJobQueue`] on SQLite: one writer at a time, so `UPDATE ... RETURNING` claims atomically.
+
+use super::queue::{
+    BatchCounts, BatchProgress, ClaimedJob, JobError, MAX_ATTEMPTS, NewJob, RoofJobQueue,
+    StoredPrediction, footprint_hash,
+};
+use crate::classifier::Prediction;
+use citymesh_core::geo::GeoBbox;
+use sqlx::{Row, SqlitePool};
+use std::collections::BTreeMap;
+use std::time::Duration;
+
+#[derive(Clone)]
+pub struct SqliteJobQueue {
+    pool: SqlitePool,
+}
+
+fn now_ms() -> i64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| i64::try_from(d.as_millis()).unwrap_or(i64::MAX))
+}
+
+fn ring_json(ring: &[[f64; 2]]) -> String {
+    serde_json::to_string(ring).unwrap_or_else(|_| "[]".into())
+}
+
+fn parse_ring(text: &str) -> Result<Vec<[f64; 2]>, JobError> {
+    serde_json::from_str(text).map_err(|e| JobError::Corrupt(e.to_string()))
+}
+
+impl SqliteJobQueue {
+    pub fn new(pool: SqlitePool) -> Self {
+        Self { pool }
+    }
+}
+
+impl RoofJobQueue for SqliteJobQueue {
+    async fn enqueue(
+        &self,
+        bbox: &str,
+        imagery_id: &str,
+        model_id: &str,
+        jobs: &[NewJob],
+        skipped: BTreeMap<String, u64>,
+    ) -> Result<(i64, BatchCounts), JobError> {
+        let now = now_ms();
+        let mut tx = self.pool.begin().await?;
+        let batch: i64 = sqlx::query(
+            "INSERT INTO roof_batches (created_at, bbox, imagery_id, model_id, counts) \
+             VALUES (?, ?, ?, ?, '{}') RETURNING id",
+        )
+        .bind(now)
+        .bind(bbox)
+        .bind(imagery_id)
+        .bind(model_id)
+        .fetch_one(&mut *tx)
+        .await?
+        .get(0);
+        let mut counts = BatchCounts {
+            skipped,
+            ..BatchCounts::default()
+        };
+        for job in jobs {
+            let hash = footprint_hash(&job.footprint);
+            // A job that failed for good or was cancelled is queued again by a new batch.
+            let inserted = sqlx::query(
+                "INSERT INTO roof_jobs (batch_id, osm_id, footprint_hash, imagery_id, model_id, \
+                 footprint, state, updated_at) VALUES (?, ?, ?, ?, ?, ?, 'queued', ?) \
+                 ON CONFLICT (osm_id, footprint_hash, imagery_id, model_id) DO UPDATE SET \
+                 batch_id = excluded.batch_id, state = 'queued', attempts = 0, error = NULL, \
+                 lease_until = NULL, updated_at = excluded.updated_at \
+                 WHERE roof_jobs.state IN ('failed', 'cancelled')",
+            )
+            .bind(batch)
+            .bind(&job.osm_id)
+            .bind(&hash)
+            .bind(imagery_id)
+            .bind(model_id)
+            .bind(ring_json(&job.footprint))
+            .bind(now)
+            .execute(&mut *tx)
+            .await?
+            .rows_affected();
+            if inserted == 1 {
+                counts.queued += 1;
+            } else {
+                counts.already += 1;
+            }
+        }
+        sqlx::query("UPDATE roof_batches SET counts = ? WHERE id = ?")
+            .bind(serde_json::to_string(&counts).unwrap_or_default())
+            .bind(batch)
+            .execute(&mut *tx)
+            .await?;
+        tx.commit().await?;
+        Ok((batch, counts))
+    }
+
+    async fn claim(&self, n: u32, lease: Duration) -> Result<Vec<ClaimedJob>, JobError> {
+        let now = now_ms();
+        let until = now.saturating_add(i64::try_from(lease.as_millis()).unwrap_or(i64::MAX));
+        let rows = sqlx::query(
+            "UPDATE roof_jobs SET state = 'running', lease_until = ?, attempts = attempts + 1, \
+             updated_at = ? WHERE id IN (SELECT id FROM roof_jobs WHERE state = 'queued' \
+             OR (state = 'running' AND lease_until < ?) ORDER BY id LIMIT ?) \
+             RETURNING id, osm_id, footprint_hash, imagery_id, model_id, footprint, attempts",
+        )
+        .bind(until)
+        .bind(now)
+        .bind(now)
+        .bind(i64::from(n))
+        .fetch_all(&self.pool)
+        .await?;
+        let mut jobs = rows
+            .into_iter()
+            .map(|r| {
+                Ok(ClaimedJob {
+                    id: r.get(0),
+                    osm_id: r.get(1),
+                    footprint_hash: r.get(2),
+                    imagery_id: r.get(3),
+                    model_id: r.get(4),
+                    footprint: parse_ring(&r.get::<String, _>(5))?,
+                    attempts: r.get(6),
+                })
+            })
+            .collect::<Result<Vec<_>, JobError>>()?;
+        jobs.sort_by_key(|j| j.id);
+        Ok(jobs)
+    }
+
+    async fn complete(&self, job: &ClaimedJob, prediction: Prediction) -> Result<(), JobError> {
+        let (mut lo, mut hi) = ([f64::MAX; 2], [f64::MIN; 2]);
+        for p in &job.footprint {
+            for k in 0..2 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        let now = now_ms();
+        let p = prediction.probabilities;
+        let mut tx = self.pool.begin().await?;
+        sqlx::query(
+            "INSERT OR REPLACE INTO roof_predictions (osm_id, footprint_hash, imagery_id, model_id, \
+             p_flat, p_gabled, p_hipped, footprint, min_lon, min_lat, max_lon, max_lat, created_at) \
+             VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+        )
+        .bind(&job.osm_id)
+        .bind(&job.footprint_hash)
+        .bind(&job.imagery_id)
+        .bind(&job.model_id)
+        .bind(f64::from(p[0]))
+        .bind(f64::from(p[1]))
+        .bind(f64::from(p[2]))
+        .bind(ring_json(&job.footprint))
+        .bind(lo[0])
+        .bind(lo[1])
+        .bind(hi[0])
+        .bind(hi[1])
+        .bind(now)
+        .execute(&mut *tx)
+        .await?;
+        sqlx::query(
+            "UPDATE roof_jobs SET state = 'done', lease_until = NULL, error = NULL, updated_at = ? \
+             WHERE id = ?",
+        )
+        .bind(now)
+        .bind(job.id)
+        .execute(&mut *tx)
+        .await?;
+        tx.commit().await?;
+        Ok(())
+    }
+
+    async fn fail(&self, job: &ClaimedJob, reason: &str, retry: bool) -> Result<(), JobError> {
+        let state = if retry && job.attempts < MAX_ATTEMPTS {
+            "queued"
+        } else {
+            "failed"
+        };
+        sqlx::query(
+            "UPDATE roof_jobs SET state = ?, lease_until = NULL, error = ?, updated_at = ? \
+             WHERE id = ? AND state = 'running'",
+        )
+        .bind(state)
+        .bind(reason)
+        .bind(now_ms())
+        .bind(job.id)
+        .execute(&self.pool)
+        .await?;
+        Ok(())
+    }
+
+    async fn progress(&self, batch: i64) -> Result<Option<BatchProgress>, JobError> {
+        let Some(row) = sqlx::query(
+            "SELECT bbox, imagery_id, model_id, counts, cancelled FROM roof_batches WHERE id = ?",
+        )
+        .bind(batch)
+        .fetch_optional(&self.pool)
+        .await?
+        else {
+            return Ok(None);
+        };
+        let counts: BatchCounts =
+            serde_json::from_str(&row.get::<String, _>(3)).unwrap_or_default();
+        let mut jobs: BTreeMap<String, u64> = ["queued", "running", "done", "failed", "cancelled"]
+            .iter()
+            .map(|s| ((*s).to_owned(), 0))
+            .collect();
+        for r in
+            sqlx::query("SELECT state, COUNT(*) FROM roof_jobs WHERE batch_id = ? GROUP BY state")
+                .bind(batch)
+                .fetch_all(&self.pool)
+                .await?
+        {
+            jobs.insert(r.get(0), u64::try_from(r.get::<i64, _>(1)).unwrap_or(0));
+        }
+        let finished = jobs["queued"] == 0 && jobs["running"] == 0;
+        Ok(Some(BatchProgress {
+            id: batch,
+            bbox: row.get(0),
+            imagery_id: row.get(1),
+            model_id: row.get(2),
+            counts,
+            jobs,
+            finished,
+            cancelled: row.get::<i64, _>(4) != 0,
+        }))
+    }
+
+    async fn cancel(&self, batch: i64) -> Result<Option<u64>, JobError> {
+        let mut tx = self.pool.begin().await?;
+        let found = sqlx::query("UPDATE roof_batches SET cancelled = 1 WHERE id = ?")
+            .bind(batch)
+            .execute(&mut *tx)
+            .await?
+            .rows_affected();
+        if found == 0 {
+            return Ok(None);
+        }
+        let n = sqlx::query(
+            "UPDATE roof_jobs SET state = 'cancelled', updated_at = ? \
+             WHERE batch_id = ? AND state = 'queued'",
+        )
+        .bind(now_ms())
+        .bind(batch)
+        .execute(&mut *tx)
+        .await?
+        .rows_affected();
+        tx.commit().await?;
+        Ok(Some(n))
+    }
+
+    async fn predictions(
+        &self,
+        bbox: &GeoBbox,
+        limit: u32,
+    ) -> Result<Vec<StoredPrediction>, JobError> {
+        let rows = sqlx::query(
+            "SELECT osm_id, footprint_hash, imagery_id, model_id, p_flat, p_gabled, p_hipped, \
+             footprint FROM roof_predictions WHERE max_lon >= ? AND min_lon <= ? AND max_lat >= ? \
+             AND min_lat <= ? ORDER BY osm_id LIMIT ?",
+        )
+        .bind(bbox.min_lon())
+        .bind(bbox.max_lon())
+        .bind(bbox.min_lat())
+        .bind(bbox.max_lat())
+        .bind(i64::from(limit))
+        .fetch_all(&self.pool)
+        .await?;
+        rows.into_iter()
+            .map(|r| {
+                Ok(StoredPrediction {
+                    osm_id: r.get(0),
+                    footprint_hash: r.get(1),
+                    imagery_id: r.get(2),
+                    model_id: r.get(3),
+                    prediction: Prediction::new([
+                        r.get::<f64, _>(4) as f32,
+                        r.get::<f64, _>(5) as f32,
+                        r.get::<f64, _>(6) as f32,
+                    ]),
+                    footprint: parse_ring(&r.get::<String, _>(7))?,
+                })
+            })
+            .collect()
+    }
+}

@@ -1,0 +1,123 @@
+//! Running roof jobs: claim a few under a lease, fetch and stitch their imagery, crop by the crop
+//! rule, classify the crops in one batch, store each prediction. Failures of one building fail
+//! that job (with a reason; retried when the cause may pass), never the others.
+
+use super::queue::{ClaimedJob, JobError, RoofJobQueue};
+use crate::classifier::{RoofClassifier, classify_blocking};
+use crate::imagery::{TileMemo, XyzImagery, crop_footprint};
+use citymesh_core::roof_image::Crop;
+use std::sync::Arc;
+use std::time::Duration;
+
+/// How workers behave.
+#[derive(Debug, Clone, Copy)]
+pub struct WorkerConfig {
+    /// Jobs claimed at once (and classified in one batch).
+    pub claim: u32,
+    /// How long a claim holds before another worker may take the job.
+    pub lease: Duration,
+    /// Pause when the queue is empty.
+    pub idle: Duration,
+}
+
+impl Default for WorkerConfig {
+    fn default() -> Self {
+        Self {
+            claim: 16,
+            lease: Duration::from_secs(120),
+            idle: Duration::from_millis(500),
+        }
+    }
+}
+
+/// What one round did.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct RoundReport {
+    pub done: usize,
+    pub failed: usize,
+}
+
+/// Claims and runs one round of jobs; `Ok(None)` when nothing was queued.
+pub async fn run_round<Q: RoofJobQueue>(
+    queue: &Q,
+    imagery: &XyzImagery,
+    classifier: &Arc<dyn RoofClassifier>,
+    config: WorkerConfig,
+) -> Result<Option<RoundReport>, JobError> {
+    let jobs = queue.claim(config.claim, config.lease).await?;
+    if jobs.is_empty() {
+        return Ok(None);
+    }
+    let mut report = RoundReport::default();
+    let mut tiles = TileMemo::new();
+    let mut ready: Vec<(ClaimedJob, Crop)> = Vec::new();
+    for job in jobs {
+        match crop_for(&job, imagery, classifier.model_id(), &mut tiles).await {
+            Ok(crop) => ready.push((job, crop)),
+            Err((reason, retry)) => {
+                queue.fail(&job, &reason, retry).await?;
+                report.failed += 1;
+            }
+        }
+    }
+    if ready.is_empty() {
+        return Ok(Some(report));
+    }
+    let (jobs, crops): (Vec<ClaimedJob>, Vec<Crop>) = ready.into_iter().unzip();
+    match classify_blocking(classifier.clone(), crops).await {
+        Ok(predictions) => {
+            for (job, p) in jobs.iter().zip(predictions) {
+                queue.complete(job, p).await?;
+                report.done += 1;
+            }
+        }
+        Err(e) => {
+            for job in &jobs {
+                queue.fail(job, &format!("classifier: {e}"), true).await?;
+                report.failed += 1;
+            }
+        }
+    }
+    Ok(Some(report))
+}
+
+/// The crop of one job, or why not and whether trying again may help.
+async fn crop_for(
+    job: &ClaimedJob,
+    imagery: &XyzImagery,
+    model_id: &str,
+    tiles: &mut TileMemo,
+) -> Result<Crop, (String, bool)> {
+    if job.imagery_id != imagery.spec().id {
+        return Err((
+            format!("imagery {} is not configured", job.imagery_id),
+            false,
+        ));
+    }
+    if job.model_id != model_id {
+        return Err((format!("model {} is not loaded", job.model_id), false));
+    }
+    crop_footprint(&job.footprint, imagery, tiles)
+        .await
+        .map_err(|f| (f.reason, f.retry))
+}
+
+/// Runs rounds for ever (the server aborts it at shutdown; a job it held is taken again when its
+/// lease runs out); pauses `idle` when the queue is empty or the store fails.
+pub async fn run_worker<Q: RoofJobQueue>(
+    queue: Q,
+    imagery: Arc<XyzImagery>,
+    classifier: Arc<dyn RoofClassifier>,
+    config: WorkerConfig,
+) {
+    loop {
+        match run_round(&queue, &imagery, &classifier, config).await {
+            Ok(Some(_)) => {}
+            Ok(None) => tokio::time::sleep(config.idle).await,
+            Err(e) => {
+                tracing::warn!(error = %e, "roof job round failed");
+                tokio::time::sleep(config.idle).await;
+            }
+        }
+    }
+}

@@ -1,0 +1,256 @@
+//! Roofs classified from imagery end to end: a real imagery server started inside the test on
+//! 127.0.0.1 serves XYZ tiles that citymesh's renderer draws of real Kirchfeld footprints with
+//! the roof shapes their tags say (a synthetic orthophoto); citymesh classifies the buildings from
+//! it and the predictions are compared with the tags. Bad imagery fails buildings, not the run.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
+
+mod common;
+
+use axum::extract::{Path, State};
+use axum::http::{StatusCode, header};
+use axum::response::IntoResponse;
+use citymesh::classifier::classify_area::agreement;
+use citymesh::classifier::{RoofClassifier, load_classifier};
+use citymesh::imagery::{ImagerySpec, XyzImagery};
+use citymesh::jobs::worker::{WorkerConfig, run_round};
+use citymesh::jobs::{RoofJobQueue, Selection, SqliteJobQueue, select_buildings};
+use citymesh_core::geo::{GeoBbox, LocalFrame, TileCoord};
+use citymesh_core::osm::{BuildingRecord, read_buildings};
+use citymesh_core::roof_image::Image;
+use citymesh_core::roof_image::render::Camera;
+use citymesh_core::roof_image::synthetic::{Palette, render_orthophoto};
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+
+/// The area: about 500 x 650 m of Kirchfeld with many flat and gabled tags.
+const AREA: &str = "8.396,49.052,8.403,49.058";
+
+struct Orthophoto {
+    records: Vec<BuildingRecord>,
+    frame: LocalFrame,
+    tiles: Mutex<HashMap<(u8, u32, u32), Vec<u8>>>,
+}
+
+fn render_tile(o: &Orthophoto, t: TileCoord) -> Vec<u8> {
+    let b = t.bounds();
+    let nw = o.frame.to_local(b.min_lon(), b.max_lat(), 0.0);
+    let se = o.frame.to_local(b.max_lon(), b.min_lat(), 0.0);
+    let camera = Camera {
+        top_left: [nw[0], nw[1]],
+        metres_per_pixel: (se[0] - nw[0]) / 256.0,
+        width: 256,
+        height: 256,
+        skew: [0.0, 0.0],
+    };
+    let img: Image = render_orthophoto(&o.records, &o.frame, &camera, Palette::Holdout, 11);
+    let rgb: Vec<u8> = img.to_srgb8().iter().flatten().copied().collect();
+    let mut png = Vec::new();
+    image::ImageEncoder::write_image(
+        image::codecs::png::PngEncoder::new(&mut png),
+        &rgb,
+        256,
+        256,
+        image::ExtendedColorType::Rgb8,
+    )
+    .unwrap();
+    png
+}
+
+async fn good(
+    State(o): State<Arc<Orthophoto>>,
+    Path((z, x, y)): Path<(u8, u32, String)>,
+) -> impl IntoResponse {
+    let y: u32 = y.trim_end_matches(".png").parse().unwrap();
+    if let Some(png) = o.tiles.lock().unwrap().get(&(z, x, y)) {
+        return ([(header::CONTENT_TYPE, "image/png")], png.clone()).into_response();
+    }
+    let t = TileCoord::new(u32::from(z), x, y).unwrap();
+    let o2 = o.clone();
+    let png = tokio::task::spawn_blocking(move || render_tile(&o2, t))
+        .await
+        .unwrap();
+    o.tiles.lock().unwrap().insert((z, x, y), png.clone());
+    ([(header::CONTENT_TYPE, "image/png")], png).into_response()
+}
+
+async fn bad(
+    Path((kind, _z, _x, _y)): Path<(String, u8, u32, String)>,
+) -> axum::response::Response {
+    match kind.as_str() {
+        "missing" => StatusCode::NOT_FOUND.into_response(),
+        "garbage" => (
+            [(header::CONTENT_TYPE, "image/png")],
+            b"\x89PNG\r\n garbage".to_vec(),
+        )
+            .into_response(),
+        "huge" => {
+            // 200 MB announced and streamed: refused at the limit, never held.
+            let chunk = bytes::Bytes::from(vec![0u8; 1 << 20]);
+            let stream = futures_util::stream::iter(
+                (0..200).map(move |_| Ok::<_, std::io::Error>(chunk.clone())),
+            );
+            (
+                [(header::CONTENT_LENGTH, (200u64 << 20).to_string())],
+                axum::body::Body::from_stream(stream),
+            )
+                .into_response()
+        }
+        "hang" => {
+            tokio::time::sleep(std::time::Duration::from_secs(3600)).await;
+            StatusCode::OK.into_response()
+        }
+        "small" => {
+            let mut png = Vec::new();
+            image::ImageEncoder::write_image(
+                image::codecs::png::PngEncoder::new(&mut png),
+                &vec![128u8; 100 * 100 * 3],
+                100,
+                100,
+                image::ExtendedColorType::Rgb8,
+            )
+            .unwrap();
+            ([(header::CONTENT_TYPE, "image/png")], png).into_response()
+        }
+        _ => StatusCode::BAD_REQUEST.into_response(),
+    }
+}
+
+fn kirchfeld() -> Vec<BuildingRecord> {
+    let area: GeoBbox = AREA.parse().unwrap();
+    let mut records = read_buildings(&common::osm_bytes("karlsruhe-kirchfeld.osm.pbf"))
+        .unwrap()
+        .buildings;
+    records.retain(|r| {
+        let n = &r.outers[0].nodes[0];
+        area.contains(n.lon, n.lat)
+    });
+    records
+}
+
+/// Starts the imagery server; returns its base URL.
+async fn imagery_server() -> String {
+    let all = read_buildings(&common::osm_bytes("karlsruhe-kirchfeld.osm.pbf"))
+        .unwrap()
+        .buildings;
+    let o = Arc::new(Orthophoto {
+        records: all,
+        frame: LocalFrame::new(8.3995, 49.055, 0.0),
+        tiles: Mutex::new(HashMap::new()),
+    });
+    let app = axum::Router::new()
+        .route("/ortho/{z}/{x}/{y}", axum::routing::get(good))
+        .with_state(o)
+        .route("/{kind}/{z}/{x}/{y}", axum::routing::get(bad));
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    tokio::spawn(async move { axum::serve(listener, app).await.unwrap() });
+    format!("http://{addr}")
+}
+
+/// Queues every selected building of `records` and runs rounds until none is left; returns the
+/// batch's job counts by state and the predictions with their buildings' tags.
+async fn classify(
+    records: &[BuildingRecord],
+    imagery: &XyzImagery,
+    classifier: &Arc<dyn RoofClassifier>,
+) -> (
+    std::collections::BTreeMap<String, u64>,
+    Vec<(Option<String>, citymesh::classifier::Prediction)>,
+) {
+    let queue = SqliteJobQueue::new(citymesh::db::open(":memory:").await.unwrap());
+    let (jobs, _) = select_buildings(records, Selection::All);
+    let (batch, counts) = queue
+        .enqueue(
+            AREA,
+            &imagery.spec().id,
+            classifier.model_id(),
+            &jobs,
+            Default::default(),
+        )
+        .await
+        .unwrap();
+    assert_eq!(counts.queued as usize, jobs.len());
+    while run_round(&queue, imagery, classifier, WorkerConfig::default())
+        .await
+        .unwrap()
+        .is_some()
+    {}
+    let progress = queue.progress(batch).await.unwrap().unwrap();
+    assert!(progress.finished);
+    let tags: HashMap<String, Option<String>> = records
+        .iter()
+        .map(|r| (r.id.to_string(), r.tags.get("roof:shape").cloned()))
+        .collect();
+    let predictions = queue
+        .predictions(&AREA.parse().unwrap(), u32::MAX)
+        .await
+        .unwrap()
+        .into_iter()
+        .map(|p| (tags.get(&p.osm_id).cloned().flatten(), p.prediction))
+        .collect();
+    (progress.jobs, predictions)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn kirchfeld_roofs_classified_from_rendered_imagery_agree_with_their_tags() {
+    let base = imagery_server().await;
+    let records = kirchfeld();
+    let classifier = load_classifier(None, None).unwrap();
+    let imagery = XyzImagery::new(ImagerySpec::xyz(
+        "ortho",
+        &format!("{base}/ortho/{{z}}/{{x}}/{{y}}.png"),
+    ))
+    .unwrap();
+    let (jobs, predictions) = classify(&records, &imagery, &classifier).await;
+    assert_eq!(jobs["failed"], 0, "{jobs:?}");
+    let text = agreement(&predictions);
+    eprintln!("{} roofs classified; {text}", predictions.len());
+    let compared = predictions
+        .iter()
+        .filter(|(t, _)| {
+            matches!(
+                t.as_deref(),
+                Some("flat" | "gabled" | "hipped" | "pyramidal")
+            )
+        })
+        .count();
+    let agree = predictions
+        .iter()
+        .filter(|(t, p)| {
+            t.as_deref()
+                .and_then(citymesh_core::building::roof::RoofShape::from_tag)
+                .and_then(citymesh_core::roof_image::RoofClass::of_shape)
+                == Some(p.class())
+        })
+        .count();
+    assert!(compared >= 100, "{compared}");
+    let share = agree as f64 / compared as f64;
+    assert!(share >= 0.80, "{text}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn bad_imagery_fails_jobs_with_a_reason_and_never_the_run() {
+    let base = imagery_server().await;
+    let records: Vec<BuildingRecord> = kirchfeld()
+        .into_iter()
+        .filter(|r| !r.is_part)
+        .take(3)
+        .collect();
+    let classifier = load_classifier(None, None).unwrap();
+    for kind in ["missing", "garbage", "huge", "hang", "small"] {
+        let mut spec = ImagerySpec::xyz(kind, &format!("{base}/{kind}/{{z}}/{{x}}/{{y}}.png"));
+        spec.timeout_s = 1.0;
+        spec.retries = 0;
+        let imagery = XyzImagery::new(spec).unwrap();
+        // A hang costs the timeout per attempt, so the run ends; 120 s turns a regression into a
+        // failure instead of a stuck test.
+        let (jobs, predictions) = tokio::time::timeout(
+            std::time::Duration::from_secs(120),
+            classify(&records, &imagery, &classifier),
+        )
+        .await
+        .unwrap_or_else(|_| panic!("{kind}: classification did not end"));
+        assert_eq!(jobs["failed"], 3, "{kind}: {jobs:?}");
+        assert!(predictions.is_empty(), "{kind}");
+    }
+}

@@ -1,0 +1,220 @@
+"""Trains citymesh's roof classifier (flat / gabled / hipped) on crops rendered by
+`citymesh render-roofs`, evaluates it on a held-out set rendered with another seed and palette,
+and exports ONNX. See README.md in this folder for the whole, reproducible command sequence.
+
+Input of the network: N x 4 x 64 x 64 floats: R, G, B as sRGB / 255 and the footprint mask
+(1 inside, 0 outside, 128/255 everywhere when unknown). Output: N x 3 class probabilities.
+"""
+
+import argparse
+import csv
+import json
+import os
+import time
+
+import numpy as np
+import torch
+import torch.nn as nn
+import torch.nn.functional as F
+from PIL import Image
+
+CLASSES = ["flat", "gabled", "hipped"]
+SIZE = 64
+# The mask value of a crop whose footprint is not known (as citymesh feeds it: 128 / 255).
+UNKNOWN = 128 / 255
+
+
+def load(folder):
+    """Images (uint8, N x 4 x 64 x 64; mask 128 where unknown) and labels of a rendered set."""
+    rows = list(csv.DictReader(open(os.path.join(folder, "labels.csv"))))
+    x = np.empty((len(rows), 4, SIZE, SIZE), dtype=np.uint8)
+    y = np.empty(len(rows), dtype=np.int64)
+    for i, r in enumerate(rows):
+        im = Image.open(os.path.join(folder, r["file"]))
+        a = np.asarray(im)
+        x[i, :3] = a[:, :, :3].transpose(2, 0, 1)
+        x[i, 3] = a[:, :, 3] if a.shape[2] == 4 else 128
+        y[i] = CLASSES.index(r["class"])
+    return x, y
+
+
+class RoofNet(nn.Module):
+    """A small VGG-style CNN with batch norm and global average pooling."""
+
+    def __init__(self, width=(16, 32, 64, 128)):
+        super().__init__()
+        c1, c2, c3, c4 = width
+
+        def block(i, o):
+            return [nn.Conv2d(i, o, 3, padding=1, bias=False), nn.BatchNorm2d(o), nn.ReLU(inplace=True)]
+
+        self.features = nn.Sequential(
+            *block(4, c1), nn.MaxPool2d(2),                    # 32
+            *block(c1, c2), *block(c2, c2), nn.MaxPool2d(2),   # 16
+            *block(c2, c3), *block(c3, c3), nn.MaxPool2d(2),   # 8
+            *block(c3, c4),
+        )
+        self.head = nn.Sequential(nn.Dropout(0.3), nn.Linear(c4, 3))
+        self.register_buffer("mean", torch.tensor([0.45, 0.45, 0.45, 0.5]).view(1, 4, 1, 1))
+        self.register_buffer("scale", torch.tensor([0.25, 0.25, 0.25, 0.5]).view(1, 4, 1, 1))
+
+    def forward(self, x):
+        x = (x - self.mean) / self.scale
+        x = self.features(x)
+        x = x.mean(dim=(2, 3))
+        return self.head(x)
+
+
+class WithSoftmax(nn.Module):
+    def __init__(self, net):
+        super().__init__()
+        self.net = net
+
+    def forward(self, crops):
+        return torch.softmax(self.net(crops), dim=1)
+
+
+def augment(xb, gen):
+    """Random dihedral turn, colour jitter, grey, blur-free noise, shift, and hidden masks."""
+    n = xb.shape[0]
+    x = xb.float() / 255.0
+    k = int(torch.randint(0, 4, (1,), generator=gen))
+    x = torch.rot90(x, k, dims=(2, 3))
+    if torch.rand(1, generator=gen) < 0.5:
+        x = torch.flip(x, dims=(3,))
+    rgb, mask = x[:, :3], x[:, 3:]
+    # Brightness, contrast, per-channel gain, saturation.
+    b = 1 + 0.25 * (torch.rand(n, 1, 1, 1, generator=gen) * 2 - 1)
+    c = 1 + 0.3 * (torch.rand(n, 1, 1, 1, generator=gen) * 2 - 1)
+    g = 1 + 0.08 * (torch.rand(n, 3, 1, 1, generator=gen) * 2 - 1)
+    mean = rgb.mean(dim=(1, 2, 3), keepdim=True)
+    rgb = (rgb - mean) * c + mean
+    rgb = rgb * b * g
+    grey = rgb.mean(dim=1, keepdim=True)
+    s = 0.6 + torch.rand(n, 1, 1, 1, generator=gen) * 0.7
+    s = torch.where(torch.rand(n, 1, 1, 1, generator=gen) < 0.05, torch.zeros_like(s), s)
+    rgb = grey + (rgb - grey) * s
+    rgb = rgb + 0.02 * torch.randn(rgb.shape, generator=gen) * torch.rand(n, 1, 1, 1, generator=gen)
+    rgb = rgb.clamp(0, 1)
+    # Hide a known mask now and then, so both paths keep training.
+    hide = (torch.rand(n, 1, 1, 1, generator=gen) < 0.15) & (mask != UNKNOWN).any(dim=(2, 3), keepdim=True)
+    mask = torch.where(hide, torch.full_like(mask, UNKNOWN), mask)
+    x = torch.cat([rgb, mask], dim=1)
+    # Shift by up to 3 px.
+    dx, dy = (int(v) for v in torch.randint(-3, 4, (2,), generator=gen))
+    x = torch.roll(x, shifts=(dy, dx), dims=(2, 3))
+    return x
+
+
+def evaluate(net, x, y, batch=512):
+    net.eval()
+    preds = []
+    with torch.no_grad():
+        for i in range(0, len(x), batch):
+            xb = torch.from_numpy(x[i:i + batch]).float() / 255.0
+            preds.append(net(xb).argmax(1).numpy())
+    p = np.concatenate(preds)
+    confusion = np.zeros((3, 3), dtype=np.int64)
+    for t, q in zip(y, p):
+        confusion[t, q] += 1
+    return float((p == y).mean()), confusion
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--train", required=True)
+    ap.add_argument("--test", required=True)
+    ap.add_argument("--out", required=True, help="the .onnx file to write")
+    ap.add_argument("--metrics", required=True, help="a JSON file for the model card")
+    ap.add_argument("--seed", type=int, default=20261127)
+    ap.add_argument("--epochs", type=int, default=20)
+    ap.add_argument("--batch", type=int, default=128)
+    ap.add_argument("--threads", type=int, default=2)
+    args = ap.parse_args()
+
+    torch.manual_seed(args.seed)
+    np.random.seed(args.seed)
+    torch.set_num_threads(args.threads)
+    gen = torch.Generator().manual_seed(args.seed)
+
+    x, y = load(args.train)
+    xt, yt = load(args.test)
+    print(f"train {len(x)} crops, test {len(xt)} crops", flush=True)
+    net = RoofNet()
+    params = sum(p.numel() for p in net.parameters())
+    print(f"{params} parameters", flush=True)
+    steps = args.epochs * (len(x) // args.batch)
+    opt = torch.optim.AdamW(net.parameters(), lr=3e-3, weight_decay=5e-4)
+    sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=3e-3, total_steps=steps, pct_start=0.15)
+    started = time.time()
+    step = 0
+    for epoch in range(args.epochs):
+        net.train()
+        order = torch.randperm(len(x), generator=gen).numpy()
+        total, correct, loss_sum = 0, 0, 0.0
+        for i in range(0, len(order) - args.batch + 1, args.batch):
+            idx = order[i:i + args.batch]
+            xb = augment(torch.from_numpy(x[idx]), gen)
+            yb = torch.from_numpy(y[idx])
+            logits = net(xb)
+            loss = F.cross_entropy(logits, yb, label_smoothing=0.05)
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+            sched.step()
+            step += 1
+            loss_sum += loss.item() * len(idx)
+            correct += int((logits.argmax(1) == yb).sum())
+            total += len(idx)
+        acc, _ = evaluate(net, xt, yt)
+        print(f"epoch {epoch + 1}/{args.epochs}: loss {loss_sum / total:.3f}, train acc {correct / total:.3f}, "
+              f"test acc {acc:.3f}, {time.time() - started:.0f} s", flush=True)
+
+    minutes = (time.time() - started) / 60
+    acc, confusion = evaluate(net, xt, yt)
+    print(f"test accuracy {acc:.4f}\n{confusion}", flush=True)
+
+    net.eval()
+    model = WithSoftmax(net).eval()
+    sample = torch.from_numpy(xt[:64]).float() / 255.0
+    with torch.no_grad():
+        want = model(sample).numpy()
+    torch.save(net.state_dict(), os.path.splitext(args.metrics)[0] + ".pt")
+    dummy = torch.zeros(1, 4, SIZE, SIZE)
+    torch.onnx.export(model, dummy, args.out, input_names=["crops"], output_names=["probabilities"],
+                      dynamic_axes={"crops": {0: "n"}, "probabilities": {0: "n"}}, opset_version=17,
+                      dynamo=False)
+
+    # The exported model must answer as torch does.
+    import onnxruntime as ort
+    # The exporter puts the module back into training mode afterwards: compare with the
+    # answers taken before it.
+    sess = ort.InferenceSession(args.out, providers=["CPUExecutionProvider"])
+    got = sess.run(None, {"crops": sample.numpy()})[0]
+    diff = float(np.abs(want - got).max())
+    print(f"onnxruntime vs torch: max difference {diff:.2e}", flush=True)
+    assert diff < 1e-4
+
+    per_mask = {}
+    for name, sel in [("with mask", xt[:, 3, 0, 0] != 128), ("without mask", xt[:, 3, 0, 0] == 128)]:
+        a, c = evaluate(net, xt[sel], yt[sel])
+        per_mask[name] = {"count": int(sel.sum()), "accuracy": a, "confusion": c.tolist()}
+    json.dump({
+        "classes": CLASSES,
+        "parameters": params,
+        "epochs": args.epochs,
+        "batch": args.batch,
+        "seed": args.seed,
+        "threads": args.threads,
+        "train_crops": int(len(x)),
+        "test_crops": int(len(xt)),
+        "training_minutes": round(minutes, 1),
+        "test_accuracy": acc,
+        "confusion": confusion.tolist(),
+        "by_mask": per_mask,
+        "torch": torch.__version__,
+    }, open(args.metrics, "w"), indent=2)
+
+
+if __name__ == "__main__":
+    main()
