@@ -306,14 +306,7 @@ fn check_simple(i: usize, rings: &[(Ring, String)]) -> Result<(), GeoJsonError> 
     };
     let frame = LocalFrame::new(first.lon, first.lat, 0.0);
     for (r, field) in rings {
-        let points = r
-            .nodes
-            .iter()
-            .map(|n| {
-                let p = frame.to_local(n.lon, n.lat, 0.0);
-                [p[0], p[1]]
-            })
-            .collect();
+        let points = r.local_points(&frame);
         match Footprint::new(FootprintRing::from_points(points), vec![]) {
             Ok(_) => {}
             Err(FootprintError::SelfIntersecting) => {

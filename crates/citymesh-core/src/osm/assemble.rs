@@ -36,6 +36,19 @@ pub struct Ring {
     pub nodes: Vec<RingNode>,
 }
 
+impl Ring {
+    /// The ring's points `[east, north]` in metres in `frame`.
+    pub fn local_points(&self, frame: &crate::geo::LocalFrame) -> Vec<[f64; 2]> {
+        self.nodes
+            .iter()
+            .map(|n| {
+                let p = frame.to_local(n.lon, n.lat, 0.0);
+                [p[0], p[1]]
+            })
+            .collect()
+    }
+}
+
 /// One building or building part as OSM describes it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BuildingRecord {

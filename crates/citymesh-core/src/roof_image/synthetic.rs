@@ -74,16 +74,7 @@ impl FootprintPool {
         let rings = records
             .iter()
             .filter(|r| !r.is_part && r.outers.len() == 1)
-            .map(|r| {
-                r.outers[0]
-                    .nodes
-                    .iter()
-                    .map(|node| {
-                        let p = frame.to_local(node.lon, node.lat, 0.0);
-                        [p[0], p[1]]
-                    })
-                    .collect()
-            })
+            .map(|r| r.outers[0].local_points(&frame))
             .collect();
         Self::new(rings)
     }
@@ -306,14 +297,7 @@ pub fn render_orthophoto(
         if record.is_part || record.outers.len() != 1 {
             continue;
         }
-        let outer: Vec<[f64; 2]> = record.outers[0]
-            .nodes
-            .iter()
-            .map(|n| {
-                let p = frame.to_local(n.lon, n.lat, 0.0);
-                [p[0], p[1]]
-            })
-            .collect();
+        let outer = record.outers[0].local_points(frame);
         let near = outer.iter().any(|p| {
             p[0] > lo[0] - reach
                 && p[0] < hi[0] + reach
