@@ -287,3 +287,114 @@ impl RoofJobQueue for SqliteJobQueue {
             .collect()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn job(id: i64) -> NewJob {
+        let x = id as f64 * 1e-3;
+        NewJob {
+            osm_id: format!("way/{id}"),
+            footprint: vec![[8.4 + x, 49.0], [8.4001 + x, 49.0], [8.4001 + x, 49.0001]],
+        }
+    }
+
+    async fn queue() -> SqliteJobQueue {
+        SqliteJobQueue::new(crate::db::open(":memory:").await.unwrap())
+    }
+
+    fn p() -> Prediction {
+        Prediction::new([0.2, 0.7, 0.1])
+    }
+
+    #[tokio::test]
+    async fn a_building_is_queued_once_per_inputs() {
+        let q = queue().await;
+        let jobs = [job(1), job(2), job(3)];
+        let (_, first) = q
+            .enqueue("b", "img", "m", &jobs, BTreeMap::new())
+            .await
+            .unwrap();
+        assert_eq!((first.queued, first.already), (3, 0));
+        let (_, again) = q
+            .enqueue("b", "img", "m", &jobs, BTreeMap::new())
+            .await
+            .unwrap();
+        assert_eq!((again.queued, again.already), (0, 3));
+        // Another model or a changed footprint is new work.
+        let (_, other) = q
+            .enqueue("b", "img", "m2", &jobs[..1], BTreeMap::new())
+            .await
+            .unwrap();
+        assert_eq!(other.queued, 1);
+        let mut moved = job(1);
+        moved.footprint[0][0] += 1e-5;
+        let (_, changed) = q
+            .enqueue("b", "img", "m", &[moved], BTreeMap::new())
+            .await
+            .unwrap();
+        assert_eq!(changed.queued, 1);
+    }
+
+    #[tokio::test]
+    async fn a_lease_that_runs_out_gives_the_job_to_the_next_claim_and_it_completes_once() {
+        let q = queue().await;
+        let (batch, _) = q
+            .enqueue("b", "img", "m", &[job(1), job(2)], BTreeMap::new())
+            .await
+            .unwrap();
+        // A worker takes both and dies: a 1 ms lease.
+        let dead = q.claim(10, Duration::from_millis(1)).await.unwrap();
+        assert_eq!(dead.len(), 2);
+        // Once the lease has run out, the next claim takes the same jobs again.
+        tokio::time::sleep(Duration::from_millis(20)).await;
+        let taken = q.claim(10, Duration::from_secs(60)).await.unwrap();
+        assert_eq!(
+            taken.iter().map(|j| j.id).collect::<Vec<_>>(),
+            dead.iter().map(|j| j.id).collect::<Vec<_>>()
+        );
+        assert!(taken.iter().all(|j| j.attempts == 2));
+        assert!(
+            q.claim(10, Duration::from_secs(60))
+                .await
+                .unwrap()
+                .is_empty()
+        );
+        for j in &taken {
+            q.complete(j, p()).await.unwrap();
+        }
+        // The dead worker comes back and completes too: still one prediction per building.
+        q.complete(&dead[0], p()).await.unwrap();
+        let all = q
+            .predictions(&"8.3,48.9,8.5,49.1".parse().unwrap(), 100)
+            .await
+            .unwrap();
+        assert_eq!(all.len(), 2);
+        let progress = q.progress(batch).await.unwrap().unwrap();
+        assert_eq!(progress.jobs["done"], 2);
+        assert!(progress.finished);
+    }
+
+    #[tokio::test]
+    async fn failures_retry_up_to_the_limit_and_cancel_stops_queued_jobs() {
+        let q = queue().await;
+        let (batch, _) = q
+            .enqueue("b", "img", "m", &[job(1), job(2)], BTreeMap::new())
+            .await
+            .unwrap();
+        for attempt in 1..=MAX_ATTEMPTS {
+            let jobs = q.claim(1, Duration::from_secs(60)).await.unwrap();
+            assert_eq!(jobs[0].attempts, attempt);
+            q.fail(&jobs[0], "no_imagery: busy", true).await.unwrap();
+        }
+        let progress = q.progress(batch).await.unwrap().unwrap();
+        assert_eq!((progress.jobs["failed"], progress.jobs["queued"]), (1, 1));
+        assert_eq!(q.cancel(batch).await.unwrap(), Some(1));
+        let progress = q.progress(batch).await.unwrap().unwrap();
+        assert_eq!(progress.jobs["cancelled"], 1);
+        assert!(progress.finished && progress.cancelled);
+        assert_eq!(q.cancel(999).await.unwrap(), None);
+        assert!(q.progress(999).await.unwrap().is_none());
+    }
+}
