@@ -233,6 +233,26 @@ impl TileStore {
     }
 
     /// Deletes every stored tile (any scheme, encoding or version) whose ground overlaps `area`.
+    /// Deletes one key's row, if stored.
+    pub async fn remove(&self, key: &TileKey, data_version: &str) -> Result<(), sqlx::Error> {
+        let removed: Option<i64> = bind_key(
+            sqlx::query(concat!(
+                "DELETE FROM generated_tiles WHERE ",
+                key_where!(),
+                " RETURNING size"
+            )),
+            key,
+            data_version,
+        )
+        .fetch_optional(&self.pool)
+        .await?
+        .map(|r| r.get(0));
+        if let Some(size) = removed {
+            self.forget(size);
+        }
+        Ok(())
+    }
+
     pub async fn delete_overlapping(&self, area: &GeoBbox) -> Result<u64, sqlx::Error> {
         let sizes: Vec<i64> = sqlx::query(
             "DELETE FROM generated_tiles WHERE west <= ? AND east >= ? AND south <= ? AND north >= ? \

@@ -99,6 +99,8 @@ impl TileCache {
         let level = AtomicU8::new(0);
         // Set when the data changed while this tile was generated.
         let outdated = AtomicBool::new(false);
+        // The invalidation epoch when generation started (only set when this call generates).
+        let started = AtomicU64::new(u64::MAX);
         let result = self
             .memory
             .try_get_with(key, async {
@@ -116,6 +118,7 @@ impl TileCache {
                 self.metrics.cache("sqlite", false);
                 level.store(2, Ordering::Relaxed);
                 let epoch = self.epoch.load(Ordering::SeqCst);
+                started.store(epoch, Ordering::SeqCst);
                 let (bytes, stats) = generate().await?;
                 let etag = etag_of(&bytes);
                 if self.epoch.load(Ordering::SeqCst) == epoch {
@@ -133,8 +136,15 @@ impl TileCache {
             })
             .await;
         let tile = result.map_err(|e: Arc<E>| (*e).clone())?;
+        let start = started.load(Ordering::SeqCst);
         if outdated.load(Ordering::SeqCst) {
             self.memory.invalidate(&key).await;
+        } else if start != u64::MAX && self.epoch.load(Ordering::SeqCst) != start {
+            // An invalidation ran between the check above and the tile landing in memory (or its
+            // row in SQLite, after the invalidation's delete): neither copy may outlive it. The
+            // tile is still served to this request, as when generation itself overlapped.
+            self.memory.invalidate(&key).await;
+            self.store.remove(&key, &self.data_version).await?;
         }
         let level = match level.load(Ordering::Relaxed) {
             0 => {
