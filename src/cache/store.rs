@@ -152,21 +152,7 @@ impl TileStore {
         let now = now_ms();
         let cost = bytes.len() as i64 + ROW_OVERHEAD;
         // Replacing a row: its cost leaves the count first.
-        let replaced: Option<i64> = bind_key(
-            sqlx::query(concat!(
-                "DELETE FROM generated_tiles WHERE ",
-                key_where!(),
-                " RETURNING size"
-            )),
-            key,
-            data_version,
-        )
-        .fetch_optional(&self.pool)
-        .await?
-        .map(|r| r.get(0));
-        if let Some(size) = replaced {
-            self.forget(size);
-        }
+        self.remove(key, data_version).await?;
         let insert = sqlx::query(
             "INSERT INTO generated_tiles (scheme, region, z, x, y, encoding, roofs, data_version, \
              west, south, east, north, bytes, etag, created_at, size, last_used) \
