@@ -43,25 +43,8 @@ pub struct ClassifyArgs {
     #[arg(long)]
     pub bbox: Option<String>,
 
-    /// The imagery service's URL template: {z}, {x}, {y}, {-y} (TMS) or {q} (quadkey).
-    #[arg(long)]
-    pub imagery_url: String,
-
-    /// Deepest zoom the imagery service has.
-    #[arg(long, default_value_t = 19)]
-    pub imagery_max_zoom: u8,
-
-    /// Imagery tile side in pixels.
-    #[arg(long, default_value_t = 256)]
-    pub imagery_tile_size: u32,
-
-    /// Credit line of the imagery, written into the results.
-    #[arg(long, default_value = "")]
-    pub imagery_attribution: String,
-
-    /// A short name for the imagery: predictions are kept per imagery and model.
-    #[arg(long, default_value = "imagery")]
-    pub imagery_id: String,
+    #[command(flatten)]
+    pub imagery: ImageryArgs,
 
     /// SQLite file holding the jobs and predictions (the one `serve --cache-db` uses).
     #[arg(
@@ -85,6 +68,48 @@ pub struct ClassifyArgs {
 
     #[command(flatten)]
     pub classifier: ClassifierArgs,
+}
+
+/// The imagery service roofs are classified from (configured by the operator only: requests
+/// never name a URL).
+#[derive(Debug, Clone, clap::Args)]
+pub struct ImageryArgs {
+    /// The imagery service's URL template: {z}, {x}, {y}, {-y} (TMS) or {q} (quadkey).
+    #[arg(long, env = "CITYMESH_IMAGERY_URL")]
+    pub imagery_url: Option<String>,
+
+    /// Deepest zoom the imagery service has.
+    #[arg(long, env = "CITYMESH_IMAGERY_MAX_ZOOM", default_value_t = 19)]
+    pub imagery_max_zoom: u8,
+
+    /// Imagery tile side in pixels.
+    #[arg(long, default_value_t = 256)]
+    pub imagery_tile_size: u32,
+
+    /// Credit line of the imagery, reported with every prediction.
+    #[arg(long, env = "CITYMESH_IMAGERY_ATTRIBUTION", default_value = "")]
+    pub imagery_attribution: String,
+
+    /// A short name for the imagery: predictions are kept per imagery and model.
+    #[arg(long, env = "CITYMESH_IMAGERY_ID", default_value = "imagery")]
+    pub imagery_id: String,
+
+    /// Imagery requests in flight at most.
+    #[arg(long, default_value_t = 4)]
+    pub imagery_concurrency: usize,
+}
+
+impl ImageryArgs {
+    /// The service these flags describe, `None` without `--imagery-url`.
+    pub fn spec(&self) -> Option<crate::imagery::ImagerySpec> {
+        let url = self.imagery_url.as_deref()?;
+        let mut spec = crate::imagery::ImagerySpec::xyz(&self.imagery_id, url);
+        spec.max_zoom = self.imagery_max_zoom;
+        spec.tile_size = self.imagery_tile_size;
+        spec.attribution.clone_from(&self.imagery_attribution);
+        spec.max_concurrent = self.imagery_concurrency.max(1);
+        Some(spec)
+    }
 }
 
 /// Where the roof classifier's runtime and model come from.
@@ -229,6 +254,23 @@ pub struct ServeArgs {
 
     #[command(flatten)]
     pub classifier: ClassifierArgs,
+
+    #[command(flatten)]
+    pub imagery: ImageryArgs,
+
+    /// Workers running queued roof jobs (with --roof-classifier and --imagery-url); 0: jobs are
+    /// queued but only `citymesh classify` or another server runs them.
+    #[arg(long, env = "CITYMESH_CLASSIFY_WORKERS", default_value_t = 1)]
+    pub classify_workers: usize,
+
+    /// Seconds a worker holds the jobs it claimed: a worker that dies (crash, kill -9) leaves
+    /// them to be taken again after this.
+    #[arg(long, env = "CITYMESH_CLASSIFY_LEASE_S", default_value_t = 120.0)]
+    pub classify_lease_s: f64,
+
+    /// Least top probability a prediction needs to give a roof its shape with `roofs=classified`.
+    #[arg(long, env = "CITYMESH_ROOF_THRESHOLD", default_value_t = 0.6)]
+    pub roof_threshold: f32,
 
     /// Seconds one Overpass request may take.
     #[arg(long, env = "CITYMESH_OVERPASS_TIMEOUT_S", default_value_t = 60.0)]

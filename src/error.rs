@@ -205,3 +205,9 @@ impl From<sqlx::Error> for AppError {
         AppError::internal(format!("cache database: {e}"))
     }
 }
+
+impl From<crate::jobs::JobError> for AppError {
+    fn from(e: crate::jobs::JobError) -> Self {
+        AppError::internal(e)
+    }
+}

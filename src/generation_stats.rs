@@ -20,4 +20,6 @@ pub struct GenerationStats {
     pub osm: String,
     /// Groups of buildings in the scene.
     pub groups: usize,
+    /// Buildings whose roof shape came from the classifier (counted in `buildings` as tagged).
+    pub chosen_roofs: usize,
 }

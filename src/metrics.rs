@@ -34,6 +34,19 @@ pub struct UpstreamLabels {
     pub result: &'static str,
 }
 
+#[derive(Clone, Debug, Hash, PartialEq, Eq, EncodeLabelSet)]
+pub struct StateLabels {
+    /// `queued`, `running`, `done`, `failed` or `cancelled`.
+    pub state: String,
+}
+
+#[derive(Clone, Debug, Hash, PartialEq, Eq, EncodeLabelSet)]
+pub struct ResultLabels {
+    /// `ok`, or why not (`not_found`, `busy`, `timeout`, `too_large`, `not_an_image`,
+    /// `bad_response`).
+    pub result: &'static str,
+}
+
 /// Every metric citymesh keeps.
 pub struct Metrics {
     registry: Registry,
@@ -43,6 +56,11 @@ pub struct Metrics {
     pub upstream: Family<UpstreamLabels, Counter>,
     pub generations: Counter,
     pub generation_seconds: Histogram,
+    /// Roof jobs by state (set after each worker round and each new batch).
+    pub roof_jobs: Family<StateLabels, prometheus_client::metrics::gauge::Gauge>,
+    pub imagery_fetches: Family<ResultLabels, Counter>,
+    /// Time to classify one batch of crops.
+    pub inference_seconds: Histogram,
 }
 
 fn latency_buckets() -> impl Iterator<Item = f64> {
@@ -63,6 +81,24 @@ impl Default for Metrics {
         let upstream = Family::<UpstreamLabels, Counter>::default();
         let generations = Counter::default();
         let generation_seconds = Histogram::new(latency_buckets());
+        let roof_jobs = Family::default();
+        let imagery_fetches = Family::<ResultLabels, Counter>::default();
+        let inference_seconds = Histogram::new(latency_buckets());
+        registry.register(
+            "roof_jobs",
+            "Roof classification jobs by state",
+            roof_jobs.clone(),
+        );
+        registry.register(
+            "imagery_fetches",
+            "Imagery tile requests by result",
+            imagery_fetches.clone(),
+        );
+        registry.register(
+            "roof_inference_duration_seconds",
+            "Time to classify one batch of roof crops",
+            inference_seconds.clone(),
+        );
         registry.register(
             "http_requests",
             "HTTP requests by route and status",
@@ -97,6 +133,9 @@ impl Default for Metrics {
             upstream,
             generations,
             generation_seconds,
+            roof_jobs,
+            imagery_fetches,
+            inference_seconds,
         }
     }
 }

@@ -45,4 +45,6 @@ pub struct AppState {
     pub assets_dir: std::path::PathBuf,
     /// The roof-shape classifier, when `--roof-classifier` loaded it.
     pub classifier: Option<Arc<dyn crate::classifier::RoofClassifier>>,
+    /// Roof jobs, their workers, and the predictions `roofs=classified` uses.
+    pub roofs: Arc<crate::jobs::RoofJobs>,
 }

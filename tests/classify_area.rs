@@ -6,114 +6,18 @@
 
 mod common;
 
-use axum::extract::{Path, State};
-use axum::http::{StatusCode, header};
-use axum::response::IntoResponse;
 use citymesh::classifier::classify_area::agreement;
 use citymesh::classifier::{RoofClassifier, load_classifier};
 use citymesh::imagery::{ImagerySpec, XyzImagery};
 use citymesh::jobs::worker::{WorkerConfig, run_round};
 use citymesh::jobs::{RoofJobQueue, Selection, SqliteJobQueue, select_buildings};
-use citymesh_core::geo::{GeoBbox, LocalFrame, TileCoord};
+use citymesh_core::geo::GeoBbox;
 use citymesh_core::osm::{BuildingRecord, read_buildings};
-use citymesh_core::roof_image::Image;
-use citymesh_core::roof_image::render::Camera;
-use citymesh_core::roof_image::synthetic::{Palette, render_orthophoto};
 use std::collections::HashMap;
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 /// The area: about 500 x 650 m of Kirchfeld with many flat and gabled tags.
 const AREA: &str = "8.396,49.052,8.403,49.058";
-
-struct Orthophoto {
-    records: Vec<BuildingRecord>,
-    frame: LocalFrame,
-    tiles: Mutex<HashMap<(u8, u32, u32), Vec<u8>>>,
-}
-
-fn render_tile(o: &Orthophoto, t: TileCoord) -> Vec<u8> {
-    let b = t.bounds();
-    let nw = o.frame.to_local(b.min_lon(), b.max_lat(), 0.0);
-    let se = o.frame.to_local(b.max_lon(), b.min_lat(), 0.0);
-    let camera = Camera {
-        top_left: [nw[0], nw[1]],
-        metres_per_pixel: (se[0] - nw[0]) / 256.0,
-        width: 256,
-        height: 256,
-        skew: [0.0, 0.0],
-    };
-    let img: Image = render_orthophoto(&o.records, &o.frame, &camera, Palette::Holdout, 11);
-    let rgb: Vec<u8> = img.to_srgb8().iter().flatten().copied().collect();
-    let mut png = Vec::new();
-    image::ImageEncoder::write_image(
-        image::codecs::png::PngEncoder::new(&mut png),
-        &rgb,
-        256,
-        256,
-        image::ExtendedColorType::Rgb8,
-    )
-    .unwrap();
-    png
-}
-
-async fn good(
-    State(o): State<Arc<Orthophoto>>,
-    Path((z, x, y)): Path<(u8, u32, String)>,
-) -> impl IntoResponse {
-    let y: u32 = y.trim_end_matches(".png").parse().unwrap();
-    if let Some(png) = o.tiles.lock().unwrap().get(&(z, x, y)) {
-        return ([(header::CONTENT_TYPE, "image/png")], png.clone()).into_response();
-    }
-    let t = TileCoord::new(u32::from(z), x, y).unwrap();
-    let o2 = o.clone();
-    let png = tokio::task::spawn_blocking(move || render_tile(&o2, t))
-        .await
-        .unwrap();
-    o.tiles.lock().unwrap().insert((z, x, y), png.clone());
-    ([(header::CONTENT_TYPE, "image/png")], png).into_response()
-}
-
-async fn bad(
-    Path((kind, _z, _x, _y)): Path<(String, u8, u32, String)>,
-) -> axum::response::Response {
-    match kind.as_str() {
-        "missing" => StatusCode::NOT_FOUND.into_response(),
-        "garbage" => (
-            [(header::CONTENT_TYPE, "image/png")],
-            b"\x89PNG\r\n garbage".to_vec(),
-        )
-            .into_response(),
-        "huge" => {
-            // 200 MB announced and streamed: refused at the limit, never held.
-            let chunk = bytes::Bytes::from(vec![0u8; 1 << 20]);
-            let stream = futures_util::stream::iter(
-                (0..200).map(move |_| Ok::<_, std::io::Error>(chunk.clone())),
-            );
-            (
-                [(header::CONTENT_LENGTH, (200u64 << 20).to_string())],
-                axum::body::Body::from_stream(stream),
-            )
-                .into_response()
-        }
-        "hang" => {
-            tokio::time::sleep(std::time::Duration::from_secs(3600)).await;
-            StatusCode::OK.into_response()
-        }
-        "small" => {
-            let mut png = Vec::new();
-            image::ImageEncoder::write_image(
-                image::codecs::png::PngEncoder::new(&mut png),
-                &vec![128u8; 100 * 100 * 3],
-                100,
-                100,
-                image::ExtendedColorType::Rgb8,
-            )
-            .unwrap();
-            ([(header::CONTENT_TYPE, "image/png")], png).into_response()
-        }
-        _ => StatusCode::BAD_REQUEST.into_response(),
-    }
-}
 
 fn kirchfeld() -> Vec<BuildingRecord> {
     let area: GeoBbox = AREA.parse().unwrap();
@@ -125,26 +29,6 @@ fn kirchfeld() -> Vec<BuildingRecord> {
         area.contains(n.lon, n.lat)
     });
     records
-}
-
-/// Starts the imagery server; returns its base URL.
-async fn imagery_server() -> String {
-    let all = read_buildings(&common::osm_bytes("karlsruhe-kirchfeld.osm.pbf"))
-        .unwrap()
-        .buildings;
-    let o = Arc::new(Orthophoto {
-        records: all,
-        frame: LocalFrame::new(8.3995, 49.055, 0.0),
-        tiles: Mutex::new(HashMap::new()),
-    });
-    let app = axum::Router::new()
-        .route("/ortho/{z}/{x}/{y}", axum::routing::get(good))
-        .with_state(o)
-        .route("/{kind}/{z}/{x}/{y}", axum::routing::get(bad));
-    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let addr = listener.local_addr().unwrap();
-    tokio::spawn(async move { axum::serve(listener, app).await.unwrap() });
-    format!("http://{addr}")
 }
 
 /// Queues every selected building of `records` and runs rounds until none is left; returns the
@@ -170,10 +54,16 @@ async fn classify(
         .await
         .unwrap();
     assert_eq!(counts.queued as usize, jobs.len());
-    while run_round(&queue, imagery, classifier, WorkerConfig::default())
-        .await
-        .unwrap()
-        .is_some()
+    while run_round(
+        &queue,
+        imagery,
+        classifier,
+        WorkerConfig::default(),
+        &|_, _, _| {},
+    )
+    .await
+    .unwrap()
+    .is_some()
     {}
     let progress = queue.progress(batch).await.unwrap().unwrap();
     assert!(progress.finished);
@@ -193,7 +83,7 @@ async fn classify(
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn kirchfeld_roofs_classified_from_rendered_imagery_agree_with_their_tags() {
-    let base = imagery_server().await;
+    let base = common::imagery::imagery_server().await;
     let records = kirchfeld();
     let classifier = load_classifier(None, None).unwrap();
     let imagery = XyzImagery::new(ImagerySpec::xyz(
@@ -230,7 +120,7 @@ async fn kirchfeld_roofs_classified_from_rendered_imagery_agree_with_their_tags(
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn bad_imagery_fails_jobs_with_a_reason_and_never_the_run() {
-    let base = imagery_server().await;
+    let base = common::imagery::imagery_server().await;
     let records: Vec<BuildingRecord> = kirchfeld()
         .into_iter()
         .filter(|r| !r.is_part)

@@ -87,19 +87,26 @@ impl Encoding {
     }
 }
 
-/// Where roof shapes come from. Only OSM tags so far; roofs classified from imagery are a
-/// further variant (with the model and the predictions used).
+/// Where roof shapes come from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub enum RoofSource {
     /// `roof:shape` tags, else the defaults.
     #[default]
     OsmTags,
+    /// Tags, and for buildings without one the classifier's predictions: which model, and a
+    /// digest of the predictions the tile's buildings have (so a new prediction changes the key of
+    /// exactly the tiles holding its building).
+    Classified { model: u64, predictions: u64 },
 }
 
 impl RoofSource {
-    pub fn as_str(self) -> &'static str {
+    /// The name stored with the tile: `osm`, or `classified:<model>:<predictions>` in hex.
+    pub fn name(self) -> String {
         match self {
-            RoofSource::OsmTags => "osm",
+            RoofSource::OsmTags => "osm".to_owned(),
+            RoofSource::Classified { model, predictions } => {
+                format!("classified:{model:016x}:{predictions:016x}")
+            }
         }
     }
 }
@@ -124,6 +131,11 @@ impl TileKey {
             root: Region(root),
             tile,
         })
+    }
+
+    /// The same tile with roofs from `roofs`.
+    pub fn with_roofs(self, roofs: RoofSource) -> Self {
+        Self { roofs, ..self }
     }
 
     fn new(tile: TileId) -> Self {
@@ -154,5 +166,16 @@ mod tests {
         let xyz = TileKey::xyz(TileCoord::new(16, 1, 2).unwrap());
         assert_eq!(xyz.tile.scheme(), "xyz");
         assert_ne!(xyz, TileKey::implicit(a, tile));
+        let classified = |predictions| RoofSource::Classified {
+            model: 0xab,
+            predictions,
+        };
+        assert_ne!(xyz.with_roofs(classified(1)), xyz.with_roofs(classified(2)));
+        assert_eq!(xyz.with_roofs(classified(1)), xyz.with_roofs(classified(1)));
+        assert_eq!(
+            classified(0x10).name(),
+            "classified:00000000000000ab:0000000000000010"
+        );
+        assert_eq!(RoofSource::OsmTags.name(), "osm");
     }
 }

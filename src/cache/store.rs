@@ -62,7 +62,7 @@ fn bind_key<'q>(query: Query<'q>, key: &'q TileKey, data_version: &'q str) -> Qu
         .bind(x)
         .bind(y)
         .bind(key.encoding.as_str())
-        .bind(key.roofs.as_str())
+        .bind(key.roofs.name())
         .bind(data_version)
 }
 

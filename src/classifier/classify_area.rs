@@ -3,7 +3,7 @@
 
 use super::{Prediction, load_classifier};
 use crate::cli::ClassifyArgs;
-use crate::imagery::{ImagerySpec, XyzImagery};
+use crate::imagery::XyzImagery;
 use crate::jobs::worker::{WorkerConfig, run_round};
 use crate::jobs::{
     RoofJobQueue, Selection, SqliteJobQueue, StoredPrediction, footprint_hash, select_buildings,
@@ -42,10 +42,9 @@ pub async fn run(args: &ClassifyArgs) -> anyhow::Result<String> {
         args.classifier.onnxruntime_lib.as_deref(),
         args.classifier.roof_model.as_deref(),
     )?;
-    let mut spec = ImagerySpec::xyz(&args.imagery_id, &args.imagery_url);
-    spec.max_zoom = args.imagery_max_zoom;
-    spec.tile_size = args.imagery_tile_size;
-    spec.attribution.clone_from(&args.imagery_attribution);
+    let spec = args.imagery.spec().ok_or_else(|| {
+        anyhow::anyhow!("--imagery-url is required: the imagery to classify from")
+    })?;
     let imagery = XyzImagery::new(spec)?;
     let queue = SqliteJobQueue::new(crate::db::open(&args.cache_db).await?);
     let selection = if args.all {
@@ -76,7 +75,7 @@ pub async fn run(args: &ClassifyArgs) -> anyhow::Result<String> {
     let started = std::time::Instant::now();
     let config = WorkerConfig::default();
     loop {
-        let round = run_round(&queue, &imagery, &classifier, config).await?;
+        let round = run_round(&queue, &imagery, &classifier, config, &|_, _, _| {}).await?;
         let progress = queue
             .progress(batch)
             .await?

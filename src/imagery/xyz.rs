@@ -13,6 +13,7 @@ pub struct XyzImagery {
     spec: ImagerySpec,
     http: reqwest::Client,
     permits: Semaphore,
+    metrics: Option<std::sync::Arc<crate::metrics::Metrics>>,
 }
 
 /// The Bing-style quadkey of a tile: one digit per zoom level.
@@ -43,7 +44,16 @@ impl XyzImagery {
             permits: Semaphore::new(spec.max_concurrent.max(1)),
             spec,
             http,
+            metrics: None,
         })
+    }
+
+    /// Counts every tile request's result in `metrics`.
+    pub fn with_metrics(self, metrics: std::sync::Arc<crate::metrics::Metrics>) -> Self {
+        Self {
+            metrics: Some(metrics),
+            ..self
+        }
     }
 
     pub fn spec(&self) -> &ImagerySpec {
@@ -64,6 +74,20 @@ impl XyzImagery {
 
     /// The tile as an image in linear light, `tile_size` square.
     pub async fn tile(&self, t: TileCoord) -> Result<Image, ImageryError> {
+        let result = self.fetch(t).await;
+        if let Some(m) = &self.metrics {
+            let label = match &result {
+                Ok(_) => "ok",
+                Err(e) => e.kind(),
+            };
+            m.imagery_fetches
+                .get_or_create(&crate::metrics::ResultLabels { result: label })
+                .inc();
+        }
+        result
+    }
+
+    async fn fetch(&self, t: TileCoord) -> Result<Image, ImageryError> {
         let mut backoff = Duration::from_millis(250);
         let mut attempt = 0;
         loop {

@@ -4,16 +4,21 @@
 //!
 //! [`RoofJobQueue`] is the queue's contract; [`SqliteJobQueue`] implements it on the cache
 //! database (a PostgreSQL queue would implement the same methods with `FOR UPDATE SKIP LOCKED`).
-//! [`worker`] runs jobs: imagery, crop, inference, store.
+//! [`worker`] runs jobs: imagery, crop, inference, store. [`RoofJobs`] is the server's side:
+//! the queue, the workers, and the [`PredictionIndex`] that `roofs=classified` tiles read.
 
+mod index;
 mod queue;
 mod select;
+mod service;
 mod sqlite;
 pub mod worker;
 
+pub use index::{IndexedPrediction, PredictionIndex};
 pub use queue::{
     BatchCounts, BatchProgress, ClaimedJob, JobError, NewJob, RoofJobQueue, StoredPrediction,
     footprint_hash,
 };
 pub use select::{Selection, select_buildings};
+pub use service::RoofJobs;
 pub use sqlite::SqliteJobQueue;

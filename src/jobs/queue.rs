@@ -63,6 +63,8 @@ pub struct ClaimedJob {
     pub model_id: String,
     pub footprint: Vec<[f64; 2]>,
     pub attempts: i64,
+    /// The claim's lease end, ms since the epoch: identifies the claim.
+    pub lease_until: i64,
 }
 
 /// A stored prediction.
@@ -74,6 +76,8 @@ pub struct StoredPrediction {
     pub model_id: String,
     pub prediction: Prediction,
     pub footprint: Vec<[f64; 2]>,
+    /// Its share of its worker round's time, milliseconds.
+    pub work_ms: f64,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -103,12 +107,18 @@ pub trait RoofJobQueue: Send + Sync {
         lease: Duration,
     ) -> impl Future<Output = Result<Vec<ClaimedJob>, JobError>> + Send;
 
-    /// Stores the prediction and marks the job done, in one transaction.
+    /// Stores the prediction (which took `work_ms`) and marks the job done, in one transaction, if the job is still
+    /// this claim's (running, under the same lease); `false` when its lease ran out and another
+    /// claim took it, or it was cancelled: then nothing is stored, so a job is done exactly once.
     fn complete(
         &self,
         job: &ClaimedJob,
         prediction: Prediction,
-    ) -> impl Future<Output = Result<(), JobError>> + Send;
+        work_ms: f64,
+    ) -> impl Future<Output = Result<bool, JobError>> + Send;
+
+    /// Jobs by state, over every batch.
+    fn states(&self) -> impl Future<Output = Result<BTreeMap<String, u64>, JobError>> + Send;
 
     /// Gives the job back for another attempt, or fails it for good after [`MAX_ATTEMPTS`] or when
     /// `retry` is false.
@@ -127,6 +137,13 @@ pub trait RoofJobQueue: Send + Sync {
 
     /// Cancels the batch's queued jobs; `None` if there is no such batch.
     fn cancel(&self, batch: i64) -> impl Future<Output = Result<Option<u64>, JobError>> + Send;
+
+    /// Every prediction made from `imagery_id` by `model_id`.
+    fn predictions_of(
+        &self,
+        imagery_id: &str,
+        model_id: &str,
+    ) -> impl Future<Output = Result<Vec<StoredPrediction>, JobError>> + Send;
 
     /// Predictions whose footprint's box meets `bbox`, at most `limit`.
     fn predictions(

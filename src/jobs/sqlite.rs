@@ -10,6 +10,14 @@ use sqlx::{Row, SqlitePool};
 use std::collections::BTreeMap;
 use std::time::Duration;
 
+/// The columns [`prediction_of_row`] reads.
+macro_rules! prediction_columns {
+    () => {
+        "SELECT osm_id, footprint_hash, imagery_id, model_id, p_flat, p_gabled, p_hipped, \
+         footprint, work_ms FROM roof_predictions"
+    };
+}
+
 #[derive(Clone)]
 pub struct SqliteJobQueue {
     pool: SqlitePool,
@@ -27,6 +35,14 @@ fn ring_json(ring: &[[f64; 2]]) -> String {
 
 fn parse_ring(text: &str) -> Result<Vec<[f64; 2]>, JobError> {
     serde_json::from_str(text).map_err(|e| JobError::Corrupt(e.to_string()))
+}
+
+/// Every state at 0.
+fn empty_states() -> BTreeMap<String, u64> {
+    ["queued", "running", "done", "failed", "cancelled"]
+        .iter()
+        .map(|s| ((*s).to_owned(), 0))
+        .collect()
 }
 
 impl SqliteJobQueue {
@@ -123,6 +139,7 @@ impl RoofJobQueue for SqliteJobQueue {
                     model_id: r.get(4),
                     footprint: parse_ring(&r.get::<String, _>(5))?,
                     attempts: r.get(6),
+                    lease_until: until,
                 })
             })
             .collect::<Result<Vec<_>, JobError>>()?;
@@ -130,7 +147,12 @@ impl RoofJobQueue for SqliteJobQueue {
         Ok(jobs)
     }
 
-    async fn complete(&self, job: &ClaimedJob, prediction: Prediction) -> Result<(), JobError> {
+    async fn complete(
+        &self,
+        job: &ClaimedJob,
+        prediction: Prediction,
+        work_ms: f64,
+    ) -> Result<bool, JobError> {
         let (mut lo, mut hi) = ([f64::MAX; 2], [f64::MIN; 2]);
         for p in &job.footprint {
             for k in 0..2 {
@@ -141,10 +163,25 @@ impl RoofJobQueue for SqliteJobQueue {
         let now = now_ms();
         let p = prediction.probabilities;
         let mut tx = self.pool.begin().await?;
+        // Still this claim's job? (A claim whose lease ran out may have been taken over.)
+        let ours = sqlx::query(
+            "UPDATE roof_jobs SET state = 'done', lease_until = NULL, error = NULL, updated_at = ? \
+             WHERE id = ? AND state = 'running' AND lease_until = ?",
+        )
+        .bind(now)
+        .bind(job.id)
+        .bind(job.lease_until)
+        .execute(&mut *tx)
+        .await?
+        .rows_affected();
+        if ours == 0 {
+            tx.rollback().await?;
+            return Ok(false);
+        }
         sqlx::query(
             "INSERT OR REPLACE INTO roof_predictions (osm_id, footprint_hash, imagery_id, model_id, \
-             p_flat, p_gabled, p_hipped, footprint, min_lon, min_lat, max_lon, max_lat, created_at) \
-             VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+             p_flat, p_gabled, p_hipped, footprint, min_lon, min_lat, max_lon, max_lat, created_at, \
+             work_ms) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
         )
         .bind(&job.osm_id)
         .bind(&job.footprint_hash)
@@ -159,18 +196,22 @@ impl RoofJobQueue for SqliteJobQueue {
         .bind(hi[0])
         .bind(hi[1])
         .bind(now)
-        .execute(&mut *tx)
-        .await?;
-        sqlx::query(
-            "UPDATE roof_jobs SET state = 'done', lease_until = NULL, error = NULL, updated_at = ? \
-             WHERE id = ?",
-        )
-        .bind(now)
-        .bind(job.id)
+        .bind(work_ms)
         .execute(&mut *tx)
         .await?;
         tx.commit().await?;
-        Ok(())
+        Ok(true)
+    }
+
+    async fn states(&self) -> Result<BTreeMap<String, u64>, JobError> {
+        let mut states = empty_states();
+        for r in sqlx::query("SELECT state, COUNT(*) FROM roof_jobs GROUP BY state")
+            .fetch_all(&self.pool)
+            .await?
+        {
+            states.insert(r.get(0), u64::try_from(r.get::<i64, _>(1)).unwrap_or(0));
+        }
+        Ok(states)
     }
 
     async fn fail(&self, job: &ClaimedJob, reason: &str, retry: bool) -> Result<(), JobError> {
@@ -204,10 +245,7 @@ impl RoofJobQueue for SqliteJobQueue {
         };
         let counts: BatchCounts =
             serde_json::from_str(&row.get::<String, _>(3)).unwrap_or_default();
-        let mut jobs: BTreeMap<String, u64> = ["queued", "running", "done", "failed", "cancelled"]
-            .iter()
-            .map(|s| ((*s).to_owned(), 0))
-            .collect();
+        let mut jobs = empty_states();
         for r in
             sqlx::query("SELECT state, COUNT(*) FROM roof_jobs WHERE batch_id = ? GROUP BY state")
                 .bind(batch)
@@ -252,16 +290,32 @@ impl RoofJobQueue for SqliteJobQueue {
         Ok(Some(n))
     }
 
+    async fn predictions_of(
+        &self,
+        imagery_id: &str,
+        model_id: &str,
+    ) -> Result<Vec<StoredPrediction>, JobError> {
+        let rows = sqlx::query(concat!(
+            prediction_columns!(),
+            " WHERE imagery_id = ? AND model_id = ? ORDER BY osm_id"
+        ))
+        .bind(imagery_id)
+        .bind(model_id)
+        .fetch_all(&self.pool)
+        .await?;
+        rows.iter().map(prediction_of_row).collect()
+    }
+
     async fn predictions(
         &self,
         bbox: &GeoBbox,
         limit: u32,
     ) -> Result<Vec<StoredPrediction>, JobError> {
-        let rows = sqlx::query(
-            "SELECT osm_id, footprint_hash, imagery_id, model_id, p_flat, p_gabled, p_hipped, \
-             footprint FROM roof_predictions WHERE max_lon >= ? AND min_lon <= ? AND max_lat >= ? \
-             AND min_lat <= ? ORDER BY osm_id LIMIT ?",
-        )
+        let rows = sqlx::query(concat!(
+            prediction_columns!(),
+            " WHERE max_lon >= ? AND min_lon <= ? AND max_lat >= ? AND min_lat <= ? \
+             ORDER BY osm_id LIMIT ?"
+        ))
         .bind(bbox.min_lon())
         .bind(bbox.max_lon())
         .bind(bbox.min_lat())
@@ -269,23 +323,25 @@ impl RoofJobQueue for SqliteJobQueue {
         .bind(i64::from(limit))
         .fetch_all(&self.pool)
         .await?;
-        rows.into_iter()
-            .map(|r| {
-                Ok(StoredPrediction {
-                    osm_id: r.get(0),
-                    footprint_hash: r.get(1),
-                    imagery_id: r.get(2),
-                    model_id: r.get(3),
-                    prediction: Prediction::new([
-                        r.get::<f64, _>(4) as f32,
-                        r.get::<f64, _>(5) as f32,
-                        r.get::<f64, _>(6) as f32,
-                    ]),
-                    footprint: parse_ring(&r.get::<String, _>(7))?,
-                })
-            })
-            .collect()
+        rows.iter().map(prediction_of_row).collect()
     }
+}
+
+
+fn prediction_of_row(r: &sqlx::sqlite::SqliteRow) -> Result<StoredPrediction, JobError> {
+    Ok(StoredPrediction {
+        osm_id: r.get(0),
+        footprint_hash: r.get(1),
+        imagery_id: r.get(2),
+        model_id: r.get(3),
+        prediction: Prediction::new([
+            r.get::<f64, _>(4) as f32,
+            r.get::<f64, _>(5) as f32,
+            r.get::<f64, _>(6) as f32,
+        ]),
+        footprint: parse_ring(&r.get::<String, _>(7))?,
+        work_ms: r.get(8),
+    })
 }
 
 #[cfg(test)]
@@ -362,10 +418,11 @@ mod tests {
                 .is_empty()
         );
         for j in &taken {
-            q.complete(j, p()).await.unwrap();
+            assert!(q.complete(j, p(), 1.0).await.unwrap());
         }
-        // The dead worker comes back and completes too: still one prediction per building.
-        q.complete(&dead[0], p()).await.unwrap();
+        // The dead worker comes back and tries to complete: refused, nothing stored twice.
+        assert!(!q.complete(&dead[0], p(), 1.0).await.unwrap());
+        assert!(!q.complete(&taken[0], p(), 1.0).await.unwrap());
         let all = q
             .predictions(&"8.3,48.9,8.5,49.1".parse().unwrap(), 100)
             .await

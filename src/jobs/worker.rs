@@ -3,7 +3,7 @@
 //! that job (with a reason; retried when the cause may pass), never the others.
 
 use super::queue::{ClaimedJob, JobError, RoofJobQueue};
-use crate::classifier::{RoofClassifier, classify_blocking};
+use crate::classifier::{Prediction, RoofClassifier, classify_blocking};
 use crate::imagery::{TileMemo, XyzImagery, crop_footprint};
 use citymesh_core::roof_image::Crop;
 use std::sync::Arc;
@@ -35,7 +35,17 @@ impl Default for WorkerConfig {
 pub struct RoundReport {
     pub done: usize,
     pub failed: usize,
+    /// Jobs whose lease ran out before they were stored (another worker has them now).
+    pub lost: usize,
+    /// Time spent classifying the round's crops.
+    pub inference: Duration,
 }
+
+/// Called with each job done and its prediction (once stored).
+pub type OnDone<'a> = &'a (dyn Fn(&ClaimedJob, &Prediction, f64) + Send + Sync);
+
+/// [`OnDone`], shared by a long-running worker.
+pub type SharedOnDone = Arc<dyn Fn(&ClaimedJob, &Prediction, f64) + Send + Sync>;
 
 /// Claims and runs one round of jobs; `Ok(None)` when nothing was queued.
 pub async fn run_round<Q: RoofJobQueue>(
@@ -43,11 +53,13 @@ pub async fn run_round<Q: RoofJobQueue>(
     imagery: &XyzImagery,
     classifier: &Arc<dyn RoofClassifier>,
     config: WorkerConfig,
+    on_done: OnDone<'_>,
 ) -> Result<Option<RoundReport>, JobError> {
     let jobs = queue.claim(config.claim, config.lease).await?;
     if jobs.is_empty() {
         return Ok(None);
     }
+    let round_started = std::time::Instant::now();
     let mut report = RoundReport::default();
     let mut tiles = TileMemo::new();
     let mut ready: Vec<(ClaimedJob, Crop)> = Vec::new();
@@ -64,11 +76,19 @@ pub async fn run_round<Q: RoofJobQueue>(
         return Ok(Some(report));
     }
     let (jobs, crops): (Vec<ClaimedJob>, Vec<Crop>) = ready.into_iter().unzip();
-    match classify_blocking(classifier.clone(), crops).await {
+    let started = std::time::Instant::now();
+    let classified = classify_blocking(classifier.clone(), crops).await;
+    report.inference = started.elapsed();
+    match classified {
         Ok(predictions) => {
+            let work_ms = round_started.elapsed().as_secs_f64() * 1e3 / jobs.len() as f64;
             for (job, p) in jobs.iter().zip(predictions) {
-                queue.complete(job, p).await?;
-                report.done += 1;
+                if queue.complete(job, p, work_ms).await? {
+                    on_done(job, &p, work_ms);
+                    report.done += 1;
+                } else {
+                    report.lost += 1;
+                }
             }
         }
         Err(e) => {
@@ -103,16 +123,19 @@ async fn crop_for(
 }
 
 /// Runs rounds for ever (the server aborts it at shutdown; a job it held is taken again when its
-/// lease runs out); pauses `idle` when the queue is empty or the store fails.
+/// lease runs out); pauses `idle` when the queue is empty or the store fails. `after_round` is
+/// told what each round did.
 pub async fn run_worker<Q: RoofJobQueue>(
     queue: Q,
     imagery: Arc<XyzImagery>,
     classifier: Arc<dyn RoofClassifier>,
     config: WorkerConfig,
+    on_done: SharedOnDone,
+    after_round: Arc<dyn Fn(&RoundReport) + Send + Sync>,
 ) {
     loop {
-        match run_round(&queue, &imagery, &classifier, config).await {
-            Ok(Some(_)) => {}
+        match run_round(&queue, &imagery, &classifier, config, on_done.as_ref()).await {
+            Ok(Some(report)) => after_round(&report),
             Ok(None) => tokio::time::sleep(config.idle).await,
             Err(e) => {
                 tracing::warn!(error = %e, "roof job round failed");

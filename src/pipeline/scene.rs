@@ -7,7 +7,7 @@ use crate::source::AreaBuildings;
 use crate::state::AppState;
 use bytes::Bytes;
 use citymesh_core::building::set::BuildingSet;
-use citymesh_core::scene::{SceneArea, SceneRequest};
+use citymesh_core::scene::{RoofChoice, SceneArea, SceneRequest};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
@@ -33,24 +33,29 @@ pub enum Buildings {
     FromSource,
     /// Buildings the request brought (procedural or uploaded).
     Given(Arc<BuildingSet>),
+    /// The source's buildings, loaded already (to choose roofs).
+    Loaded(AreaBuildings),
 }
 
 /// Generates an area as GLB bytes: gathers its buildings (which may ask upstream), then waits for
 /// a generation slot (503 when none frees up in time) and generates on the blocking pool. The
 /// whole takes at most `--request-timeout-s` (503 after that). 3D Tiles content that holds no
 /// building group is not generated: 404 `no_content`.
+/// `roofs` gives shapes to buildings without a `roof:shape` tag (classified roofs).
 pub async fn generate(
     state: &AppState,
     area: SceneArea,
     buildings: Buildings,
+    roofs: Option<Arc<RoofChoice>>,
 ) -> Result<Generated, AppError> {
-    within_timeout(state, generate_within(state, area, buildings)).await
+    within_timeout(state, generate_within(state, area, buildings, roofs)).await
 }
 
 async fn generate_within(
     state: &AppState,
     area: SceneArea,
     buildings: Buildings,
+    roofs: Option<Arc<RoofChoice>>,
 ) -> Result<Generated, AppError> {
     let bbox = area
         .bbox()
@@ -58,6 +63,7 @@ async fn generate_within(
     let buildings = match buildings {
         Buildings::FromSource => state.source.buildings(&bbox).await?,
         Buildings::Given(set) => AreaBuildings::given(set),
+        Buildings::Loaded(loaded) => loaded,
     };
     let slot = generation_slot(state).await?;
     let dem = state.dem.clone();
@@ -69,9 +75,12 @@ async fn generate_within(
         // The slot goes with the work (see `limits::run_blocking`).
         let _slot = slot;
         let started = Instant::now();
-        let request: SceneRequest<'_> = area
+        let mut request: SceneRequest<'_> = area
             .request(&buildings.set)
             .map_err(|e| AppError::bad_request("invalid_tile", e.to_string()))?;
+        if let Some(roofs) = &roofs {
+            request = request.with_roofs(roofs);
+        }
         if matches!(area, SceneArea::Implicit { .. }) && request.groups.is_empty() {
             return Err(AppError::not_found(
                 "no_content",
@@ -116,6 +125,7 @@ async fn generate_within(
             buildings: output.buildings,
             osm: buildings.origin,
             groups: request.groups.len(),
+            chosen_roofs: output.chosen_roofs,
         };
         Ok(Generated {
             glb: Bytes::from(output.glb.bytes),

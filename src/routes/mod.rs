@@ -3,6 +3,7 @@
 //! is registered through utoipa-axum's `OpenApiRouter` with `routes!`, so a route cannot exist
 //! without its OpenAPI description.
 
+mod classify;
 mod conditional;
 mod error_bodies;
 mod headers;
@@ -11,6 +12,7 @@ mod metrics;
 mod pages;
 mod params;
 mod procedural;
+mod roofs;
 mod scene;
 mod scene_stats;
 mod scene_upload;
@@ -49,6 +51,7 @@ use utoipa_swagger_ui::SwaggerUi;
         (name = "meshes", description = "Scenes and XYZ tiles as binary glTF"),
         (name = "3d tiles", description = "3D Tiles 1.1 with implicit quadtree tiling, for CesiumJS and 3d-tiles-renderer"),
         (name = "procedural", description = "Seeded procedural cities through the same generator"),
+        (name = "classification", description = "Roof shapes classified from imagery: queued jobs and their predictions"),
         (name = "service", description = "Health and metrics"),
         (name = "pages", description = "Viewers for people"),
     ),
@@ -89,6 +92,9 @@ fn api_router() -> OpenApiRouter<AppState> {
         .routes(routes!(tiles3d::tileset))
         .routes(routes!(tiles3d::subtree))
         .routes(routes!(tiles3d::content))
+        .routes(routes!(classify::post_classify))
+        .routes(routes!(classify::predictions))
+        .routes(routes!(classify::get_batch, classify::delete_batch))
 }
 
 /// Renames the suffixed paths to the form clients call.
@@ -120,7 +126,13 @@ pub fn app(state: AppState) -> Router {
     // figures and validators.
     let cors = CorsLayer::new()
         .allow_origin(Any)
-        .allow_methods([Method::GET, Method::HEAD, Method::OPTIONS, Method::POST])
+        .allow_methods([
+            Method::GET,
+            Method::HEAD,
+            Method::OPTIONS,
+            Method::POST,
+            Method::DELETE,
+        ])
         .allow_headers(Any)
         .expose_headers(Any);
     // JSON and text compress well; GLB is binary floats and goes out as it is (compressing it on

@@ -1,6 +1,7 @@
 //! Query parameters shared by several routes, and their checks.
 
 use crate::error::AppError;
+use crate::pipeline::RoofsParam;
 use crate::state::Limits;
 use citymesh_core::geo::GeoBbox;
 use serde::Deserialize;
@@ -19,6 +20,22 @@ pub struct BboxQuery {
         example = "8.400,49.010,8.409,49.017"
     )]
     pub bbox: Option<String>,
+    /// Where roof shapes come from: `osm` (tags, else flat; the default, the paper's scene
+    /// without computer vision) or `classified` (tags, and for untagged buildings the roof
+    /// classifier's predictions; see `POST /classify`).
+    #[param(inline)]
+    pub roofs: Option<RoofsParam>,
+}
+
+/// Where roof shapes come from.
+#[derive(Debug, Deserialize, IntoParams)]
+#[into_params(parameter_in = Query)]
+pub struct RoofsQuery {
+    /// `osm` (tags, else flat; the default, the paper's scene without computer vision) or
+    /// `classified` (tags, and for untagged buildings the roof classifier's predictions: the
+    /// response's `X-Citymesh-Roofs` says how many are still pending; see `POST /classify`).
+    #[param(inline)]
+    pub roofs: Option<RoofsParam>,
 }
 
 /// Checks a `bbox` parameter against the format, the area limit and the ground-cell limit (the

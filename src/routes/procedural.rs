@@ -193,7 +193,7 @@ pub async fn procedural_glb(
     let city = city(&state, query).await?;
     let bbox = city.bbox;
     let set = run_blocking(&state, move || Ok(Arc::new(BuildingSet::new(city.records)))).await?;
-    let generated = generate(&state, SceneArea::Given(bbox), Buildings::Given(set)).await?;
+    let generated = generate(&state, SceneArea::Given(bbox), Buildings::Given(set), None).await?;
     Ok(generated_response(
         &request_headers,
         generated,

@@ -1,12 +1,12 @@
 //! `GET /scene?bbox=` and `GET /scene.glb?bbox=`: the mesh of an area (or, from `/scene`, its
 //! statistics as JSON).
 
-use super::conditional::generated_response;
 use super::params::{BboxQuery, parse_bbox};
+use super::roofs::{generate_with_roofs, scene_response};
 use super::scene_stats::SceneStats;
 use super::schemas::GlbBytes;
 use crate::error::{AppError, ErrorBody};
-use crate::pipeline::{Buildings, Generated, generate};
+use crate::pipeline::{Generated, RoofFigures, RoofsParam};
 use crate::state::AppState;
 use axum::Json;
 use axum::extract::rejection::QueryRejection;
@@ -46,6 +46,9 @@ pub struct SceneQuery {
     /// `application/json` and not `model/gltf-binary` chooses `json`.
     #[param(inline)]
     pub format: Option<SceneFormat>,
+    /// Where roof shapes come from: `osm` (the default) or `classified`.
+    #[param(inline)]
+    pub roofs: Option<RoofsParam>,
 }
 
 /// The mesh of a bounding box (binary glTF), or its statistics (JSON).
@@ -72,10 +75,10 @@ pub async fn scene(
 ) -> Result<Response, AppError> {
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
     let format = query.format.unwrap_or_else(|| negotiate(&request_headers));
-    let generated = generate_box(&state, query.bbox.as_deref()).await?;
+    let generated = generate_box(&state, query.bbox.as_deref(), query.roofs).await?;
     Ok(match format {
-        SceneFormat::Glb => generated_response(&request_headers, generated, SCENE_CACHE_CONTROL),
-        SceneFormat::Json => Json(SceneStats::of(&generated)).into_response(),
+        SceneFormat::Glb => scene_response(&request_headers, generated, SCENE_CACHE_CONTROL),
+        SceneFormat::Json => Json(SceneStats::of(&generated.0, generated.1)).into_response(),
     })
 }
 
@@ -95,10 +98,14 @@ fn negotiate(request: &HeaderMap) -> SceneFormat {
     }
 }
 
-/// Generates the box scene of a `bbox` parameter.
-async fn generate_box(state: &AppState, bbox: Option<&str>) -> Result<Generated, AppError> {
+/// Generates the box scene of a `bbox` parameter, with roofs as asked.
+async fn generate_box(
+    state: &AppState,
+    bbox: Option<&str>,
+    roofs: Option<RoofsParam>,
+) -> Result<(Generated, Option<RoofFigures>), AppError> {
     let bbox = parse_bbox(bbox, &state.limits)?;
-    generate(state, SceneArea::Bbox(bbox), Buildings::FromSource).await
+    generate_with_roofs(state, SceneArea::Bbox(bbox), roofs.unwrap_or_default()).await
 }
 
 /// The mesh of a bounding box as binary glTF: the ground and the buildings of the server's OSM
@@ -124,6 +131,7 @@ async fn generate_box(state: &AppState, bbox: Option<&str>) -> Result<Generated,
                 ("X-Citymesh-Buildings-Skipped" = String, description = "`0`, or the count and reasons, e.g. `2; self_intersecting=2`"),
                 ("X-Citymesh-Flat-Roofs-Percent" = f64, description = "Share of flat roofs (paper Tables 2 and 3)"),
                 ("X-Citymesh-Roof-Shapes-From-Tags-Percent" = f64, description = "Share of roof shapes taken from `roof:shape` tags rather than defaults"),
+                ("X-Citymesh-Roofs" = String, description = "With `roofs=classified`: `classified, N` or `partial, N pending`"),
             )),
         (status = 304, description = "Not modified: the If-None-Match ETag is current"),
         (status = 400, description = "The bbox is missing, malformed, inverted, out of range or too large", body = ErrorBody),
@@ -138,8 +146,8 @@ pub async fn scene_glb(
     query: Result<Query<BboxQuery>, QueryRejection>,
 ) -> Result<Response, AppError> {
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
-    let generated = generate_box(&state, query.bbox.as_deref()).await?;
-    Ok(generated_response(
+    let generated = generate_box(&state, query.bbox.as_deref(), query.roofs).await?;
+    Ok(scene_response(
         &request_headers,
         generated,
         SCENE_CACHE_CONTROL,

@@ -1,8 +1,9 @@
 //! `GET /scene/stats?bbox=`: what went into the scene of an area, as JSON.
 
 use super::params::{BboxQuery, parse_bbox};
+use super::roofs::generate_with_roofs;
 use crate::error::{AppError, ErrorBody};
-use crate::pipeline::{Buildings, Generated, generate};
+use crate::pipeline::{Generated, RoofFigures, RoofsParam};
 use crate::state::AppState;
 use axum::Json;
 use axum::extract::rejection::QueryRejection;
@@ -24,11 +25,36 @@ pub struct SceneStats {
     pub glb_bytes: usize,
     /// Share of flat roofs among generated buildings, percent.
     pub flat_roof_percent: f64,
-    /// Share of roof shapes taken from `roof:shape` tags, percent (the rest are defaults or
-    /// unsupported shapes rendered flat).
+    /// Share of roof shapes taken from `roof:shape` tags, percent (the rest are from the
+    /// classifier, defaults, or unsupported shapes rendered flat).
     pub roof_shape_from_tag_percent: f64,
+    /// Share of roof shapes from the roof classifier, percent (0 with `roofs=osm`).
+    pub roof_shape_from_classifier_percent: f64,
+    /// Share of roofs given the default (flat) shape, percent.
+    pub roof_shape_default_percent: f64,
+    /// `osm` or `classified`.
+    pub roofs: RoofsParam,
+    /// With `roofs=classified`: untagged buildings classified, below the threshold, and still
+    /// without a prediction.
+    pub classified_roofs: Option<RoofFigures>,
+    /// With `roofs=classified`: the same scene without the classifier (the paper's Table 2
+    /// columns side by side).
+    pub without_classifier: Option<PaperFigures>,
     pub buildings: BuildingFigures,
     pub ground: GroundFigures,
+}
+
+/// The figures of the paper's Tables 2 and 3 for one scene.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct PaperFigures {
+    pub generation_ms: f64,
+    pub vertices: usize,
+    pub triangles: usize,
+    pub glb_bytes: usize,
+    pub flat_roof_percent: f64,
+    pub roof_shape_from_tag_percent: f64,
+    pub roof_shape_from_classifier_percent: f64,
+    pub roof_shape_default_percent: f64,
 }
 
 #[derive(Debug, Serialize, ToSchema)]
@@ -48,9 +74,10 @@ pub struct BuildingFigures {
     pub repaired_ids: Vec<RepairedBuilding>,
     /// Generated roofs per shape.
     pub roof_shapes: BTreeMap<String, usize>,
-    /// Roof shapes from a `roof:shape` tag, by default (no tag: flat), and tags naming a shape
-    /// outside the paper's eight (rendered flat).
+    /// Roof shapes from a `roof:shape` tag, from the classifier, by default (no tag: flat), and
+    /// tags naming a shape outside the paper's eight (rendered flat).
     pub roof_shape_from_tag: usize,
+    pub roof_shape_from_classifier: usize,
     pub roof_shape_default: usize,
     pub roof_shape_unsupported: usize,
     /// Total heights from `height`, from `building:levels`, and from the building type's default.
@@ -90,8 +117,9 @@ pub struct GroundFigures {
 /// Statistics of the scene of a bounding box.
 ///
 /// Generates the same scene as `/scene.glb` and reports generation time, vertex and triangle
-/// counts, the share of flat roofs and of roof shapes from tags (the paper's Tables 2 and 3),
-/// buildings generated and skipped with reasons, and where the ground came from.
+/// counts, the share of flat roofs and of roof shapes from tags, the classifier and defaults (the
+/// paper's Tables 2 and 3), buildings generated and skipped with reasons, and where the ground
+/// came from. With `roofs=classified`, the same figures without the classifier come alongside.
 #[utoipa::path(get, path = "/scene/stats", tag = "meshes", params(BboxQuery),
     responses(
         (status = 200, description = "The figures", body = SceneStats),
@@ -107,22 +135,75 @@ pub async fn scene_stats(
 ) -> Result<Json<SceneStats>, AppError> {
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
     let bbox = parse_bbox(query.bbox.as_deref(), &state.limits)?;
-    let generated = generate(&state, SceneArea::Bbox(bbox), Buildings::FromSource).await?;
-    Ok(Json(SceneStats::of(&generated)))
+    let area = SceneArea::Bbox(bbox);
+    let roofs = query.roofs.unwrap_or_default();
+    let (generated, figures) = generate_with_roofs(&state, area, roofs).await?;
+    let mut stats = SceneStats::of(&generated, figures);
+    if roofs == RoofsParam::Classified {
+        let (plain, _) = generate_with_roofs(&state, area, RoofsParam::Osm).await?;
+        stats.without_classifier = Some(PaperFigures::of(&plain));
+    }
+    Ok(Json(stats))
+}
+
+/// Roofs from tags, from the classifier and by default (the core counts classified roofs as
+/// tagged: they reach it as tags).
+fn roof_sources(generated: &Generated) -> [f64; 3] {
+    let b = &generated.stats.buildings;
+    let chosen = generated.stats.chosen_roofs;
+    let share = |n: usize| {
+        if b.roofs() == 0 {
+            0.0
+        } else {
+            100.0 * n as f64 / b.roofs() as f64
+        }
+    };
+    [
+        share(b.shape_from_tag.saturating_sub(chosen)),
+        share(chosen),
+        share(b.shape_default),
+    ]
+}
+
+impl PaperFigures {
+    pub fn of(generated: &Generated) -> Self {
+        let s = &generated.stats;
+        let [tag, classifier, default] = roof_sources(generated);
+        Self {
+            generation_ms: s.generation_ms,
+            vertices: s.vertices,
+            triangles: s.triangles,
+            glb_bytes: generated.glb.len(),
+            flat_roof_percent: s.buildings.flat_roof_percent(),
+            roof_shape_from_tag_percent: tag,
+            roof_shape_from_classifier_percent: classifier,
+            roof_shape_default_percent: default,
+        }
+    }
 }
 
 impl SceneStats {
-    /// The figures of a generated scene.
-    pub fn of(generated: &Generated) -> Self {
+    /// The figures of a generated scene, and of its classified roofs.
+    pub fn of(generated: &Generated, classified: Option<RoofFigures>) -> Self {
         let s = &generated.stats;
         let b = &s.buildings;
+        let [tag, classifier, default] = roof_sources(generated);
         SceneStats {
             generation_ms: s.generation_ms,
             vertices: s.vertices,
             triangles: s.triangles,
             glb_bytes: generated.glb.len(),
             flat_roof_percent: b.flat_roof_percent(),
-            roof_shape_from_tag_percent: b.shape_from_tag_percent(),
+            roof_shape_from_tag_percent: tag,
+            roof_shape_from_classifier_percent: classifier,
+            roof_shape_default_percent: default,
+            roofs: if classified.is_some() {
+                RoofsParam::Classified
+            } else {
+                RoofsParam::Osm
+            },
+            classified_roofs: classified,
+            without_classifier: None,
             buildings: BuildingFigures {
                 generated: b.generated,
                 parts: b.parts,
@@ -152,7 +233,8 @@ impl SceneStats {
                     .iter()
                     .map(|(k, v)| ((*k).to_owned(), *v))
                     .collect(),
-                roof_shape_from_tag: b.shape_from_tag,
+                roof_shape_from_tag: b.shape_from_tag.saturating_sub(s.chosen_roofs),
+                roof_shape_from_classifier: s.chosen_roofs,
                 roof_shape_default: b.shape_default,
                 roof_shape_unsupported: b.shape_unsupported,
                 height_from_tag: b.height_from_tag,

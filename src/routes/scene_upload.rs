@@ -133,7 +133,7 @@ pub async fn post_scene(
         Ok(Arc::new(BuildingSet::new(scene.records)))
     })
     .await?;
-    let generated = generate(&state, SceneArea::Given(bbox), Buildings::Given(set)).await?;
+    let generated = generate(&state, SceneArea::Given(bbox), Buildings::Given(set), None).await?;
     Ok(generated_response(&request_headers, generated, "no-store"))
 }
 

@@ -1,13 +1,13 @@
 //! `GET /tiles/{z}/{x}/{y}.glb`: Web Mercator XYZ tiles, through the tile cache.
 
-use super::conditional::cached_response;
+use super::params::RoofsQuery;
+use super::roofs::cached_tile;
 use super::schemas::GlbBytes;
 use crate::cache::TileKey;
 use crate::error::{AppError, ErrorBody};
-use crate::pipeline::{Buildings, generate};
 use crate::state::AppState;
-use axum::extract::rejection::PathRejection;
-use axum::extract::{Path, State};
+use axum::extract::rejection::{PathRejection, QueryRejection};
+use axum::extract::{Path, Query, State};
 use axum::http::HeaderMap;
 use axum::response::Response;
 use citymesh_core::geo::TileCoord;
@@ -25,6 +25,7 @@ use citymesh_core::geo::TileCoord;
         ("z" = u8, Path, description = "Zoom level (the server serves 12 to 20 by default)", minimum = 0, maximum = 30, example = 16),
         ("x" = u32, Path, description = "Column, 0 at 180° W; below 2^z", minimum = 0, example = 34297),
         ("y" = u32, Path, description = "Row, 0 at 85.0511° N; below 2^z", minimum = 0, example = 22502),
+        RoofsQuery,
     ),
     responses(
         (status = 200, description = "The tile", content_type = "model/gltf-binary", body = inline(GlbBytes),
@@ -32,6 +33,7 @@ use citymesh_core::geo::TileCoord;
                 ("X-Citymesh-Cache" = String, description = "`hit` (memory), `sqlite` (the on-disk cache) or `miss` (generated now)"),
                 ("ETag" = String, description = "Strong validator of the bytes; send it back in If-None-Match"),
                 ("Cache-Control" = String, description = "`public, max-age=3600`"),
+                ("X-Citymesh-Roofs" = String, description = "With `roofs=classified`: `classified, N` (every untagged building has a prediction) or `partial, N pending`"),
             )),
         (status = 304, description = "Not modified: the If-None-Match ETag is current"),
         (status = 400, description = "z, x or y is not a number or out of range", body = ErrorBody),
@@ -45,8 +47,10 @@ pub async fn tile_glb(
     State(state): State<AppState>,
     request_headers: HeaderMap,
     path: Result<Path<(String, String, String)>, PathRejection>,
+    query: Result<Query<RoofsQuery>, QueryRejection>,
 ) -> Result<Response, AppError> {
     let Path((z, x, y)) = path.map_err(|e| AppError::bad_request("invalid_tile", e.body_text()))?;
+    let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
     let tile = parse_tile(&z, &x, &y)?;
     let limits = state.limits;
     if tile.z < limits.min_zoom || tile.z > limits.max_zoom {
@@ -58,20 +62,14 @@ pub async fn tile_glb(
             ),
         ));
     }
-    let key = TileKey::xyz(tile);
-    let (cached, level) = state
-        .tiles
-        .get_or_generate(key, || async {
-            let g = generate(&state, key.tile.area(), Buildings::FromSource).await?;
-            Ok::<_, AppError>((g.glb, g.stats))
-        })
-        .await?;
-    Ok(cached_response(
+    cached_tile(
+        &state,
         &request_headers,
-        cached,
-        level,
+        TileKey::xyz(tile),
+        query.roofs.unwrap_or_default(),
         TILE_CACHE_CONTROL,
-    ))
+    )
+    .await
 }
 
 /// Tiles change only when their data does: clients may keep them an hour, then revalidate with

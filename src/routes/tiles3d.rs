@@ -2,12 +2,12 @@
 //! `?bbox=`), and the binary subtrees and ECEF glb content its implicit quadtree names; content
 //! goes through the same tile cache as XYZ tiles.
 
-use super::conditional::cached_response;
-use super::params::parse_bbox;
+use super::params::{RoofsQuery, parse_bbox};
+use super::roofs::cached_tile;
 use super::schemas::{GlbBytes, SubtreeBytes};
 use crate::cache::TileKey;
 use crate::error::{AppError, ErrorBody};
-use crate::pipeline::{self, Buildings, generate};
+use crate::pipeline::{self, RoofsParam};
 use crate::state::AppState;
 use axum::Json;
 use axum::extract::rejection::{PathRejection, QueryRejection};
@@ -26,6 +26,10 @@ pub struct TilesetQuery {
     /// (the demo city, or the `--osm` files). Required when buildings come from data tiles.
     #[param(example = "8.400,49.010,8.409,49.017")]
     pub bbox: Option<String>,
+    /// Where the content's roof shapes come from: `osm` (the default) or `classified` (passed on
+    /// to every content tile's URI).
+    #[param(inline)]
+    pub roofs: Option<RoofsParam>,
 }
 
 /// The tree's root: the `bbox` given, else the extent of the served buildings.
@@ -104,7 +108,12 @@ pub async fn tileset(
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
     let root = root_for(&state, query.bbox.as_deref())?;
     let layout = pipeline::tileset_layout(&state, root).await?;
-    let json = tileset_json(&layout, &format!("area/{root}/"));
+    let mut json = tileset_json(&layout, &format!("area/{root}/"));
+    if query.roofs == Some(RoofsParam::Classified)
+        && let Some(uri) = json.pointer_mut("/root/content/uri")
+    {
+        *uri = format!("{}?roofs=classified", uri.as_str().unwrap_or_default()).into();
+    }
     Ok(([(header::CACHE_CONTROL, "public, max-age=300")], Json(json)).into_response())
 }
 
@@ -151,13 +160,15 @@ pub async fn subtree(
     params(("bbox" = String, Path, description = "The tree's region, minLon,minLat,maxLon,maxLat", example = "8.400,49.010,8.409,49.017"),
            ("level" = u8, Path, description = "Level (content sits at the deepest level only)", minimum = 0, maximum = 30),
            ("x" = u32, Path, description = "Column at that level, from the west", minimum = 0),
-           ("y" = u32, Path, description = "Row at that level, from the south", minimum = 0)),
+           ("y" = u32, Path, description = "Row at that level, from the south", minimum = 0),
+           RoofsQuery),
     responses(
         (status = 200, description = "The content", content_type = "model/gltf-binary", body = inline(GlbBytes),
             headers(
                 ("X-Citymesh-Cache" = String, description = "`hit` (memory), `sqlite` (the on-disk cache) or `miss` (generated now)"),
                 ("ETag" = String, description = "Strong validator of the bytes; send it back in If-None-Match"),
                 ("Cache-Control" = String, description = "`public, max-age=3600`"),
+                ("X-Citymesh-Roofs" = String, description = "With `roofs=classified`: `classified, N` or `partial, N pending`"),
             )),
         (status = 304, description = "Not modified: the If-None-Match ETag is current"),
         (status = 400, description = "The region or a coordinate is malformed, or the region too large", body = ErrorBody),
@@ -171,7 +182,9 @@ pub async fn content(
     State(state): State<AppState>,
     request_headers: HeaderMap,
     path: Result<Path<(String, String, String, String)>, PathRejection>,
+    query: Result<Query<RoofsQuery>, QueryRejection>,
 ) -> Result<Response, AppError> {
+    let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
     let (root, tile) = implicit_request(&state, path, ".glb")?;
     if tile.level != ImplicitLayout::leaf_level_of(&root) {
         return Err(AppError::not_found(
@@ -179,19 +192,13 @@ pub async fn content(
             "this tile has no content (see the subtree's availability)",
         ));
     }
-    let key = TileKey::implicit(root, tile);
     // Errors (a tile without content among them) are never cached.
-    let (cached, level) = state
-        .tiles
-        .get_or_generate(key, || async {
-            let g = generate(&state, key.tile.area(), Buildings::FromSource).await?;
-            Ok::<_, AppError>((g.glb, g.stats))
-        })
-        .await?;
-    Ok(cached_response(
+    cached_tile(
+        &state,
         &request_headers,
-        cached,
-        level,
+        TileKey::implicit(root, tile),
+        query.roofs.unwrap_or_default(),
         "public, max-age=3600",
-    ))
+    )
+    .await
 }

@@ -10,6 +10,7 @@ use crate::cache::{TileCache, TileStore, invalidation};
 use crate::cli::ServeArgs;
 use crate::db;
 use crate::dem::DemStore;
+use crate::jobs::{RoofJobs, SqliteJobQueue};
 use crate::metrics::Metrics;
 use crate::source::data_tiles::OsmTileStore;
 use crate::source::{BuildingSource, DataTileSource, FileSource, load_osm_files};
@@ -162,8 +163,40 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
     } else {
         None
     };
+    let model_id = match (&classifier, &args.classifier.roof_model) {
+        (Some(c), _) => c.model_id().to_owned(),
+        (None, Some(path)) => crate::classifier::model_id_of(
+            &std::fs::read(path).with_context(|| format!("reading {}", path.display()))?,
+        ),
+        (None, None) => crate::classifier::model_id_of(crate::classifier::MODEL),
+    };
+    let imagery = match args.imagery.spec() {
+        Some(spec) => Some(Arc::new(
+            crate::imagery::XyzImagery::new(spec)?.with_metrics(metrics.clone()),
+        )),
+        None => None,
+    };
+    let roofs = Arc::new(
+        RoofJobs::new(
+            SqliteJobQueue::new(pool.clone()),
+            args.imagery.imagery_id.clone(),
+            args.imagery.imagery_attribution.clone(),
+            model_id,
+            imagery,
+            classifier.clone(),
+            args.roof_threshold.clamp(0.0, 1.0),
+            metrics.clone(),
+        )
+        .await?,
+    );
+    tracing::info!(
+        predictions = roofs.index.len(),
+        imagery = %roofs.imagery_id,
+        "roof predictions loaded"
+    );
     Ok(AppState {
         classifier,
+        roofs,
         dem: Arc::new(dem),
         source,
         tiles,
@@ -198,6 +231,20 @@ pub async fn run(args: ServeArgs) -> anyhow::Result<()> {
         .init();
 
     let state = build_state(&args).await?;
+    let workers = state.roofs.spawn_workers(
+        args.classify_workers,
+        crate::jobs::worker::WorkerConfig {
+            lease: Duration::from_secs_f64(args.classify_lease_s.clamp(1.0, 86_400.0)),
+            ..Default::default()
+        },
+    );
+    match state.roofs.why_not_running() {
+        None => tracing::info!(
+            workers = workers.len(),
+            "roof classification workers started"
+        ),
+        Some(why) => tracing::info!("roof jobs are queued but not run here: {why}"),
+    }
     if state.dem.file_count() == 0 {
         tracing::warn!(dir = %args.dem_dir.display(), "no SRTM files: the ground is flat at 0 m (pass --dem-dir)");
     }
@@ -229,6 +276,9 @@ pub async fn run(args: ServeArgs) -> anyhow::Result<()> {
         shutdown_signal(),
     )
     .await;
+    for w in workers {
+        w.abort();
+    }
     tracing::info!("stopped");
     Ok(())
 }

@@ -2,6 +2,8 @@
 //! through the router, and the Khronos glTF Validator.
 #![allow(dead_code)]
 
+pub mod imagery;
+
 use axum::body::Body;
 use axum::http::{HeaderMap, Request, StatusCode};
 use citymesh::cli::ServeArgs;

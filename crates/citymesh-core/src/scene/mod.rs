@@ -3,8 +3,10 @@
 //! citymesh serves, which box and which groups of buildings a scene holds.
 
 mod request;
+mod roof_choice;
 
 pub use request::{SceneArea, SceneOutput, SceneRequest};
+pub use roof_choice::RoofChoice;
 
 use crate::building::{BuildingContext, BuildingStats, generate_cluster};
 use crate::geo::{GeoBbox, LocalFrame};

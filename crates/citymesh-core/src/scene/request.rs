@@ -4,12 +4,14 @@
 //! tiling, see [`crate::building::set::ClusterInfo`]), how buildings meet the border, and how the
 //! result is placed on the Earth. Servers build one [`SceneRequest`] and hand it the data.
 
-use super::{Border, Scene};
+use super::{Border, RoofChoice, Scene};
 use crate::building::BuildingStats;
 use crate::building::set::{BuildingSet, ClusterInfo, extent_with};
 use crate::geo::{BboxError, GeoBbox, ImplicitTile, TileCoord};
 use crate::mesh::{EncodedGlb, Placement};
+use crate::osm::BuildingRecord;
 use crate::terrain::{ElevationModel, GroundReport};
+use std::borrow::Cow;
 
 /// An area to generate.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -69,6 +71,7 @@ impl SceneArea {
             groups,
             border: self.border(),
             placement: self.placement(),
+            roofs: None,
         })
     }
 }
@@ -83,6 +86,8 @@ pub struct SceneRequest<'a> {
     pub groups: Vec<&'a ClusterInfo>,
     pub border: Border,
     pub placement: Placement,
+    /// Roof shapes for records without a `roof:shape` tag (none: tags and defaults only).
+    pub roofs: Option<&'a RoofChoice>,
 }
 
 /// A generated, encoded scene and what went into it.
@@ -91,28 +96,53 @@ pub struct SceneOutput {
     pub glb: EncodedGlb,
     pub ground: GroundReport,
     pub buildings: BuildingStats,
+    /// Generated records whose roof shape came from the [`RoofChoice`] (counted by the core's
+    /// statistics as tagged).
+    pub chosen_roofs: usize,
 }
 
-impl SceneRequest<'_> {
+impl<'a> SceneRequest<'a> {
     /// The box the elevation model must cover: the ground and every whole group reaching past
     /// it.
     pub fn terrain_bbox(&self) -> GeoBbox {
         extent_with(&self.bbox, &self.groups)
     }
 
+    /// The same request with roof shapes chosen for records that have no `roof:shape`.
+    pub fn with_roofs(self, roofs: &'a RoofChoice) -> Self {
+        Self {
+            roofs: Some(roofs),
+            ..self
+        }
+    }
+
+    /// Each group's records as the generator sees them (with chosen roofs applied).
+    fn group_records(&self) -> Vec<Vec<Cow<'a, BuildingRecord>>> {
+        self.groups
+            .iter()
+            .map(|c| {
+                let records = self.set.cluster_records(c);
+                match self.roofs {
+                    Some(roofs) if !roofs.is_empty() => {
+                        records.into_iter().map(|r| roofs.apply(r)).collect()
+                    }
+                    _ => records.into_iter().map(Cow::Borrowed).collect(),
+                }
+            })
+            .collect()
+    }
+
     /// The scene over `model` (which should cover [`SceneRequest::terrain_bbox`]).
     pub fn scene(&self, model: &ElevationModel) -> Scene {
-        let groups: Vec<_> = self
-            .groups
-            .iter()
-            .map(|c| self.set.cluster_records(c))
-            .collect();
-        Scene::new(model, &self.bbox, &groups, self.border)
+        let records = self.group_records();
+        Scene::new(model, &self.bbox, &as_refs(&records), self.border)
     }
 
     /// The scene over `model`, encoded.
     pub fn generate(&self, model: &ElevationModel) -> SceneOutput {
-        Self::output(self.scene(model), self.placement)
+        let records = self.group_records();
+        let scene = Scene::new(model, &self.bbox, &as_refs(&records), self.border);
+        Self::output(scene, self.placement, &records)
     }
 
     /// Like [`SceneRequest::generate`], but gives up (`None`) as soon as `stop` says so (asked
@@ -122,22 +152,42 @@ impl SceneRequest<'_> {
         model: &ElevationModel,
         stop: &dyn Fn() -> bool,
     ) -> Option<SceneOutput> {
-        let groups: Vec<_> = self
-            .groups
-            .iter()
-            .map(|c| self.set.cluster_records(c))
-            .collect();
-        let scene = Scene::new_until(model, &self.bbox, &groups, self.border, stop)?;
-        (!stop()).then(|| Self::output(scene, self.placement))
+        let records = self.group_records();
+        let scene = Scene::new_until(model, &self.bbox, &as_refs(&records), self.border, stop)?;
+        (!stop()).then(|| Self::output(scene, self.placement, &records))
     }
 
-    fn output(scene: Scene, placement: Placement) -> SceneOutput {
+    fn output(
+        scene: Scene,
+        placement: Placement,
+        records: &[Vec<Cow<'_, BuildingRecord>>],
+    ) -> SceneOutput {
+        let skipped: std::collections::HashSet<&str> = scene
+            .buildings
+            .skipped_ids
+            .iter()
+            .map(|(id, _)| id.as_str())
+            .collect();
+        let chosen_roofs = records
+            .iter()
+            .flatten()
+            .filter(|r| matches!(r, Cow::Owned(_)) && !skipped.contains(r.id.to_string().as_str()))
+            .count();
         SceneOutput {
             glb: scene.encode(placement),
             ground: scene.ground,
             buildings: scene.buildings,
+            chosen_roofs,
         }
     }
+}
+
+/// Borrowed views of each group's records.
+fn as_refs<'r>(records: &'r [Vec<Cow<'_, BuildingRecord>>]) -> Vec<Vec<&'r BuildingRecord>> {
+    records
+        .iter()
+        .map(|g| g.iter().map(AsRef::as_ref).collect())
+        .collect()
 }
 
 #[cfg(test)]
@@ -194,6 +244,41 @@ mod tests {
         assert_eq!(asked.get(), half + 1);
         let whole = request.generate_until(&model, &|| false).unwrap();
         assert_eq!(whole.glb, request.generate(&model).glb);
+    }
+
+    #[test]
+    fn chosen_roofs_fill_missing_tags_only() {
+        let mut city = generate_city(&ProceduralParams::default()).unwrap();
+        // Strip the tag of the first ten buildings (not parts) and choose hipped for them, and
+        // for one building that keeps its tag.
+        let mut choice = RoofChoice::new();
+        let mut stripped = 0;
+        for r in city.records.iter_mut().filter(|r| !r.is_part).take(11) {
+            if stripped < 10 {
+                r.tags.remove("roof:shape");
+                stripped += 1;
+            }
+            choice.insert(r.id, crate::building::roof::RoofShape::Hipped);
+        }
+        let set = BuildingSet::new(city.records);
+        let model = ElevationModel::default();
+        let plain = SceneArea::Given(city.bbox).request(&set).unwrap();
+        let without = plain.generate(&model);
+        let with = plain.clone().with_roofs(&choice).generate(&model);
+        assert_eq!(without.chosen_roofs, 0);
+        assert_eq!(with.chosen_roofs, 10);
+        let hipped = |o: &SceneOutput| o.buildings.roof_shapes.get("hipped").copied().unwrap_or(0);
+        let defaults = |o: &SceneOutput| o.buildings.shape_default;
+        assert_eq!(defaults(&without) - defaults(&with), 10);
+        // Every stripped building got a hipped roof; the tagged one kept its own shape.
+        assert_eq!(hipped(&with), hipped(&without) + 10);
+        assert_ne!(with.glb, without.glb);
+        // An empty choice is the plain scene, byte for byte.
+        let empty = RoofChoice::new();
+        assert_eq!(
+            plain.clone().with_roofs(&empty).generate(&model).glb,
+            without.glb
+        );
     }
 
     #[test]

@@ -1,0 +1,101 @@
+//! Roof shapes chosen outside the data: for buildings whose OSM data has no `roof:shape`, a shape
+//! decided elsewhere (classified from imagery, docs/method.md section 11) stands in for the tag.
+//! A tag always wins: a chosen shape never replaces one the data names.
+
+use crate::building::roof::RoofShape;
+use crate::osm::{BuildingRecord, OsmId};
+use std::borrow::Cow;
+use std::collections::HashMap;
+
+/// Shapes for records without a `roof:shape` tag, by OSM id.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RoofChoice {
+    by_id: HashMap<OsmId, RoofShape>,
+}
+
+impl RoofChoice {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    pub fn insert(&mut self, id: OsmId, shape: RoofShape) {
+        self.by_id.insert(id, shape);
+    }
+
+    pub fn get(&self, id: &OsmId) -> Option<RoofShape> {
+        self.by_id.get(id).copied()
+    }
+
+    pub fn len(&self) -> usize {
+        self.by_id.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.by_id.is_empty()
+    }
+
+    /// The record as the generator should see it: with the chosen shape as its `roof:shape` when
+    /// it has none and one was chosen (a copy), else itself.
+    pub fn apply<'a>(&self, record: &'a BuildingRecord) -> Cow<'a, BuildingRecord> {
+        match self.get(&record.id) {
+            Some(shape) if !record.tags.contains_key("roof:shape") => {
+                let mut patched = record.clone();
+                patched
+                    .tags
+                    .insert("roof:shape".to_owned(), shape.tag().to_owned());
+                Cow::Owned(patched)
+            }
+            _ => Cow::Borrowed(record),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::osm::Tags;
+
+    fn record(id: i64, shape: Option<&str>) -> BuildingRecord {
+        let mut tags = Tags::new();
+        tags.insert("building".into(), "yes".into());
+        if let Some(s) = shape {
+            tags.insert("roof:shape".into(), s.into());
+        }
+        BuildingRecord {
+            id: OsmId::Way(id),
+            is_part: false,
+            outers: Vec::new(),
+            inners: Vec::new(),
+            tags,
+        }
+    }
+
+    #[test]
+    fn a_chosen_shape_fills_a_missing_tag_and_never_replaces_one() {
+        let mut choice = RoofChoice::new();
+        choice.insert(OsmId::Way(1), RoofShape::Hipped);
+        choice.insert(OsmId::Way(2), RoofShape::Hipped);
+        let untagged = record(1, None);
+        let tagged = record(2, Some("gabled"));
+        let other = record(3, None);
+        assert_eq!(
+            choice
+                .apply(&untagged)
+                .tags
+                .get("roof:shape")
+                .map(String::as_str),
+            Some("hipped")
+        );
+        assert!(matches!(choice.apply(&tagged), Cow::Borrowed(_)));
+        assert_eq!(
+            choice
+                .apply(&tagged)
+                .tags
+                .get("roof:shape")
+                .map(String::as_str),
+            Some("gabled")
+        );
+        assert!(matches!(choice.apply(&other), Cow::Borrowed(_)));
+        assert_eq!(choice.len(), 2);
+    }
+}

@@ -1,0 +1,367 @@
+//! Roof classification jobs over HTTP (docs/method.md section 11): `POST /classify` queues a job
+//! per untagged building of a box, `GET /classify/{id}` reports a batch's progress,
+//! `DELETE /classify/{id}` cancels its queued jobs, and `GET /classify/predictions?bbox=` gives
+//! the predictions as GeoJSON. Workers run the jobs (`--classify-workers`); tiles use the results
+//! with `roofs=classified`.
+
+use super::params::parse_bbox;
+use crate::error::{AppError, ErrorBody};
+use crate::jobs::{BatchCounts, BatchProgress, RoofJobQueue, Selection, select_buildings};
+use crate::state::AppState;
+use axum::Json;
+use axum::extract::rejection::{JsonRejection, PathRejection, QueryRejection};
+use axum::extract::{Path, Query, State};
+use axum::http::StatusCode;
+use axum::response::{IntoResponse, Response};
+use citymesh_core::roof_image::RoofClass;
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+use std::collections::BTreeMap;
+use utoipa::{IntoParams, ToSchema};
+
+/// Most jobs one batch may queue: a larger area is asked for in parts.
+pub const MAX_JOBS_PER_BATCH: usize = 20_000;
+/// Most features one predictions answer holds.
+pub const MAX_PREDICTIONS: u32 = 10_000;
+/// Footprints smaller than this (m²) are skipped as `too_small`: sheds and kiosks span a few
+/// pixels of imagery.
+pub const MIN_FOOTPRINT_M2: f64 = 12.0;
+
+/// What to classify.
+#[derive(Debug, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ClassifyRequest {
+    /// The area as `minLon,minLat,maxLon,maxLat`: buildings whose footprint's centre lies in it.
+    #[schema(example = "8.400,49.010,8.409,49.017")]
+    pub bbox: String,
+    /// Only these buildings of the area (`way/123`, `relation/45`); all when absent.
+    #[serde(default)]
+    pub osm_ids: Option<Vec<String>>,
+    /// Classify buildings that have a `roof:shape` tag too (to compare with the tags); by
+    /// default only untagged ones, the paper's rule.
+    #[serde(default)]
+    pub include_tagged: bool,
+}
+
+/// A batch as queued.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct BatchCreated {
+    pub id: i64,
+    /// Where to follow it.
+    pub progress: String,
+    pub counts: BatchCounts,
+    pub imagery_id: String,
+    pub imagery_attribution: String,
+    pub model_id: String,
+}
+
+/// A batch's progress, and whose imagery it uses.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct BatchStatus {
+    #[serde(flatten)]
+    pub progress: BatchProgress,
+    pub imagery_attribution: String,
+    /// Share of the batch's jobs that have ended (done, failed or cancelled), percent.
+    pub percent_ended: f64,
+}
+
+#[derive(Debug, Serialize, ToSchema)]
+pub struct BatchCancelled {
+    pub id: i64,
+    /// Queued jobs cancelled now (running ones finish).
+    pub cancelled: u64,
+}
+
+#[derive(Debug, Deserialize, IntoParams)]
+#[into_params(parameter_in = Query)]
+pub struct PredictionsQuery {
+    /// The area as `minLon,minLat,maxLon,maxLat`: predictions whose footprint meets it.
+    #[param(required = true, example = "8.400,49.010,8.409,49.017")]
+    pub bbox: Option<String>,
+}
+
+fn bad_json(e: JsonRejection) -> AppError {
+    AppError::bad_request(
+        "invalid_body",
+        format!(
+            "{}; send JSON like {{\"bbox\": \"8.400,49.010,8.409,49.017\"}}",
+            e.body_text()
+        ),
+    )
+}
+
+fn batch_id(path: Result<Path<String>, PathRejection>) -> Result<i64, AppError> {
+    let Path(text) = path.map_err(|e| AppError::bad_request("invalid_id", e.body_text()))?;
+    text.parse::<i64>()
+        .ok()
+        .filter(|id| *id > 0)
+        .ok_or_else(|| {
+            AppError::bad_request(
+                "invalid_id",
+                format!("'{text}' is not a batch id (a whole number > 0)"),
+            )
+        })
+}
+
+/// Queue roof classification for the buildings of an area.
+///
+/// Queues one job per building without `roof:shape` (and without building parts) whose
+/// footprint's centre lies in the box, unless it is already queued or classified for the same
+/// footprint, imagery and model. Answers at once with the batch id and counts; follow it at
+/// `GET /classify/{id}`. Needs the server started with `--roof-classifier` and `--imagery-url`.
+#[utoipa::path(post, path = "/classify", tag = "classification", request_body = ClassifyRequest,
+    responses(
+        (status = 202, description = "The batch is queued", body = BatchCreated),
+        (status = 400, description = "The body or the bbox is invalid, or the area has too many buildings", body = ErrorBody),
+        (status = 413, description = "The body is too large", body = ErrorBody),
+        (status = 500, description = "An internal failure; the server log has the cause", body = ErrorBody),
+        (status = 502, description = "Overpass failed or sent an incomplete answer", body = ErrorBody),
+        (status = 503, description = "Classification is not available on this server (no classifier or no imagery), or Overpass is busy", body = ErrorBody),
+        (status = 504, description = "Overpass did not answer in time", body = ErrorBody),
+    ))]
+pub async fn post_classify(
+    State(state): State<AppState>,
+    body: Result<Json<ClassifyRequest>, JsonRejection>,
+) -> Result<Response, AppError> {
+    let Json(request) = body.map_err(bad_json)?;
+    let roofs = state.roofs.clone();
+    if let Some(why) = roofs.why_not_running() {
+        return Err(AppError::Unavailable {
+            code: "classification_unavailable",
+            detail: format!("roof classification is not available: {why}"),
+            retry_after_secs: 3600,
+        });
+    }
+    let bbox = parse_bbox(Some(&request.bbox), &state.limits)?;
+    let buildings = state.source.buildings(&bbox).await?;
+    let selection = if request.include_tagged {
+        Selection::All
+    } else {
+        Selection::Untagged
+    };
+    let wanted: Option<std::collections::HashSet<&str>> = request
+        .osm_ids
+        .as_ref()
+        .map(|ids| ids.iter().map(String::as_str).collect());
+    let (candidates, mut skipped) = select_buildings(buildings.set.records(), selection);
+    let mut jobs = Vec::new();
+    for job in candidates {
+        let Some(centre) = centre_of(&job.footprint) else {
+            continue;
+        };
+        if !bbox.contains(centre[0], centre[1])
+            || wanted
+                .as_ref()
+                .is_some_and(|w| !w.contains(job.osm_id.as_str()))
+        {
+            continue;
+        }
+        if area_m2(&job.footprint) < MIN_FOOTPRINT_M2 {
+            *skipped.entry("too_small".to_owned()).or_default() += 1;
+            continue;
+        }
+        jobs.push(job);
+    }
+    if jobs.len() > MAX_JOBS_PER_BATCH {
+        return Err(AppError::bad_request(
+            "too_many_buildings",
+            format!(
+                "the area has {} buildings to classify, more than {MAX_JOBS_PER_BATCH} per batch: \
+                 split it into smaller boxes",
+                jobs.len()
+            ),
+        ));
+    }
+    // Skips of buildings outside the box say nothing about the request: counted only inside.
+    skipped.retain(|_, n| *n > 0);
+    let (id, counts) = roofs
+        .queue
+        .enqueue(
+            &bbox.to_string(),
+            &roofs.imagery_id,
+            &roofs.model_id,
+            &jobs,
+            skipped,
+        )
+        .await?;
+    roofs.refresh_state_metrics().await;
+    let created = BatchCreated {
+        id,
+        progress: format!("/classify/{id}"),
+        counts,
+        imagery_id: roofs.imagery_id.clone(),
+        imagery_attribution: roofs.imagery_attribution.clone(),
+        model_id: roofs.model_id.clone(),
+    };
+    Ok((StatusCode::ACCEPTED, Json(created)).into_response())
+}
+
+/// A classification batch's progress.
+#[utoipa::path(get, path = "/classify/{id}", tag = "classification",
+    params(("id" = i64, Path, description = "The batch id `POST /classify` answered", minimum = 1)),
+    responses(
+        (status = 200, description = "The batch's jobs by state", body = BatchStatus),
+        (status = 400, description = "The id is not a whole number > 0", body = ErrorBody),
+        (status = 404, description = "No such batch", body = ErrorBody),
+        (status = 500, description = "An internal failure; the server log has the cause", body = ErrorBody),
+    ))]
+pub async fn get_batch(
+    State(state): State<AppState>,
+    path: Result<Path<String>, PathRejection>,
+) -> Result<Json<BatchStatus>, AppError> {
+    let id = batch_id(path)?;
+    let progress = state
+        .roofs
+        .queue
+        .progress(id)
+        .await?
+        .ok_or_else(|| AppError::not_found("no_such_batch", format!("no batch {id}")))?;
+    let total: u64 = progress.jobs.values().sum();
+    let ended = progress.jobs["done"] + progress.jobs["failed"] + progress.jobs["cancelled"];
+    Ok(Json(BatchStatus {
+        percent_ended: if total == 0 {
+            100.0
+        } else {
+            100.0 * ended as f64 / total as f64
+        },
+        progress,
+        imagery_attribution: state.roofs.imagery_attribution.clone(),
+    }))
+}
+
+/// Cancel a batch's queued jobs (running ones finish; done ones keep their predictions).
+#[utoipa::path(delete, path = "/classify/{id}", tag = "classification",
+    params(("id" = i64, Path, description = "The batch id", minimum = 1)),
+    responses(
+        (status = 200, description = "Cancelled", body = BatchCancelled),
+        (status = 400, description = "The id is not a whole number > 0", body = ErrorBody),
+        (status = 404, description = "No such batch", body = ErrorBody),
+        (status = 500, description = "An internal failure; the server log has the cause", body = ErrorBody),
+    ))]
+pub async fn delete_batch(
+    State(state): State<AppState>,
+    path: Result<Path<String>, PathRejection>,
+) -> Result<Json<BatchCancelled>, AppError> {
+    let id = batch_id(path)?;
+    let cancelled = state
+        .roofs
+        .queue
+        .cancel(id)
+        .await?
+        .ok_or_else(|| AppError::not_found("no_such_batch", format!("no batch {id}")))?;
+    state.roofs.refresh_state_metrics().await;
+    Ok(Json(BatchCancelled { id, cancelled }))
+}
+
+/// The roof predictions of an area, as GeoJSON.
+///
+/// A FeatureCollection: per classified building its footprint (Polygon), OSM id, the
+/// probabilities of flat, gabled and hipped, the chosen shape, whether it clears the server's
+/// threshold (and so shapes `roofs=classified` tiles), and the imagery and model it came from. At
+/// most 10,000 features.
+#[utoipa::path(get, path = "/classify/predictions", tag = "classification", params(PredictionsQuery),
+    responses(
+        (status = 200, description = "The predictions", content_type = "application/geo+json", body = Object),
+        (status = 400, description = "The bbox is missing, malformed or too large", body = ErrorBody),
+        (status = 500, description = "An internal failure; the server log has the cause", body = ErrorBody),
+    ))]
+pub async fn predictions(
+    State(state): State<AppState>,
+    query: Result<Query<PredictionsQuery>, QueryRejection>,
+) -> Result<Response, AppError> {
+    let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
+    let bbox = parse_bbox(query.bbox.as_deref(), &state.limits)?;
+    let roofs = &state.roofs;
+    let stored = roofs.queue.predictions(&bbox, MAX_PREDICTIONS).await?;
+    let features: Vec<serde_json::Value> = stored
+        .iter()
+        .map(|s| {
+            let p = &s.prediction;
+            let mut ring = s.footprint.clone();
+            if let Some(&first) = ring.first() {
+                ring.push(first);
+            }
+            let probabilities: BTreeMap<&str, f32> = RoofClass::ALL
+                .iter()
+                .map(|c| (c.name(), p.probabilities[c.index()]))
+                .collect();
+            json!({
+                "type": "Feature",
+                "geometry": {"type": "Polygon", "coordinates": [ring]},
+                "properties": {
+                    "osm_id": s.osm_id,
+                    "roof_shape": p.class().name(),
+                    "probabilities": probabilities,
+                    "confident": p.confidence() >= roofs.threshold,
+                    "imagery_id": s.imagery_id,
+                    "model_id": s.model_id,
+                }
+            })
+        })
+        .collect();
+    let body = json!({
+        "type": "FeatureCollection",
+        "features": features,
+        "imagery_attribution": roofs.imagery_attribution,
+        "threshold": roofs.threshold,
+    });
+    Ok((
+        [(axum::http::header::CONTENT_TYPE, "application/geo+json")],
+        Json(body),
+    )
+        .into_response())
+}
+
+/// The centre of a ring's bounding box.
+fn centre_of(ring: &[[f64; 2]]) -> Option<[f64; 2]> {
+    let first = ring.first()?;
+    let (mut lo, mut hi) = (*first, *first);
+    for p in ring {
+        for k in 0..2 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    Some([(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0])
+}
+
+/// A lon/lat ring's area in m² (shoelace on an equirectangular projection at its latitude).
+fn area_m2(ring: &[[f64; 2]]) -> f64 {
+    let Some(first) = ring.first() else {
+        return 0.0;
+    };
+    let m_per_deg = 111_320.0;
+    let kx = m_per_deg * first[1].to_radians().cos();
+    let pts: Vec<[f64; 2]> = ring
+        .iter()
+        .map(|p| [(p[0] - first[0]) * kx, (p[1] - first[1]) * m_per_deg])
+        .collect();
+    let twice: f64 = (0..pts.len())
+        .map(|i| {
+            let (a, b) = (pts[i], pts[(i + 1) % pts.len()]);
+            a[0] * b[1] - b[0] * a[1]
+        })
+        .sum();
+    twice.abs() / 2.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn footprint_area_of_a_10_by_20_m_rectangle() {
+        let (lon, lat) = (8.4f64, 49.0f64);
+        let dx = 10.0 / (111_320.0 * lat.to_radians().cos());
+        let dy = 20.0 / 111_320.0;
+        let ring = [
+            [lon, lat],
+            [lon + dx, lat],
+            [lon + dx, lat + dy],
+            [lon, lat + dy],
+        ];
+        assert!((area_m2(&ring) - 200.0).abs() < 1e-6);
+        assert_eq!(centre_of(&ring), Some([lon + dx / 2.0, lat + dy / 2.0]));
+        assert_eq!(area_m2(&[]), 0.0);
+    }
+}

@@ -1,0 +1,487 @@
+//! Roof classification through the server (docs/method.md section 11): `POST /classify` queues
+//! the untagged buildings of Kirchfeld (its `roof:shape` tags stripped), workers classify them
+//! from a real imagery server started inside the test on 127.0.0.1 (tiles citymesh's renderer
+//! drew of the real footprints with the shapes their tags say), the predictions are compared with
+//! the stripped tags, tiles with `roofs=classified` change, and a new prediction changes exactly
+//! the tiles that hold its building. A server killed with SIGKILL in the middle of a run of more
+//! than 1000 jobs, and started again, finishes every job exactly once.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
+
+mod common;
+
+use axum::body::Body;
+use axum::http::{Request, StatusCode};
+use citymesh::cli::ServeArgs;
+use citymesh::jobs::worker::WorkerConfig;
+use citymesh::state::AppState;
+use citymesh_core::geo::{GeoBbox, TileCoord};
+use citymesh_core::osm::{BuildingRecord, read_buildings, write_overpass_json};
+use clap::Parser;
+use common::Answer;
+use http_body_util::BodyExt;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+use tower::ServiceExt;
+
+/// About 500 x 650 m of Kirchfeld with many flat and gabled tags.
+const AREA: &str = "8.396,49.052,8.403,49.058";
+
+/// Kirchfeld as Overpass JSON with every `roof:shape` removed; answers the file and the removed
+/// tags by OSM id.
+fn stripped_kirchfeld(dir: &Path) -> (PathBuf, HashMap<String, String>) {
+    let mut records: Vec<BuildingRecord> =
+        read_buildings(&common::osm_bytes("karlsruhe-kirchfeld.osm.pbf"))
+            .unwrap()
+            .buildings;
+    let mut tags = HashMap::new();
+    for r in &mut records {
+        if let Some(shape) = r.tags.remove("roof:shape") {
+            tags.insert(r.id.to_string(), shape);
+        }
+    }
+    let refs: Vec<&BuildingRecord> = records.iter().collect();
+    let path = dir.join("kirchfeld-stripped.json");
+    std::fs::write(&path, write_overpass_json(&refs)).unwrap();
+    (path, tags)
+}
+
+/// The app over the stripped file with the classifier, imagery at `imagery_url` and one worker.
+async fn server(db: &Path, osm: &Path, imagery_url: &str) -> (axum::Router, AppState) {
+    let dem = common::dem_dir();
+    let args = ServeArgs::parse_from([
+        "serve",
+        "--dem-dir",
+        dem.to_str().unwrap(),
+        "--cache-db",
+        db.join("c.sqlite").to_str().unwrap(),
+        "--osm",
+        osm.to_str().unwrap(),
+        "--roof-classifier",
+        "--imagery-url",
+        imagery_url,
+        "--imagery-id",
+        "ortho",
+        "--imagery-attribution",
+        "rendered by citymesh",
+    ]);
+    let state = citymesh::server::build_state(&args).await.unwrap();
+    assert!(state.classifier.is_some(), "the classifier did not load");
+    state.roofs.spawn_workers(1, WorkerConfig::default());
+    (citymesh::app(state.clone()), state)
+}
+
+async fn send(app: &axum::Router, request: Request<Body>) -> Answer {
+    let response = app.clone().oneshot(request).await.unwrap();
+    let status = response.status();
+    let headers = response.headers().clone();
+    let body = response.into_body().collect().await.unwrap().to_bytes();
+    Answer {
+        status,
+        headers,
+        body: body.to_vec(),
+    }
+}
+
+async fn post_json(app: &axum::Router, uri: &str, body: serde_json::Value) -> Answer {
+    let request = Request::post(uri)
+        .header("content-type", "application/json")
+        .body(Body::from(body.to_string()))
+        .unwrap();
+    send(app, request).await
+}
+
+/// Polls a batch until no job is queued or running.
+async fn wait_finished(app: &axum::Router, id: i64) -> serde_json::Value {
+    let deadline = std::time::Instant::now() + Duration::from_secs(600);
+    loop {
+        let progress = common::get(app, &format!("/classify/{id}")).await;
+        assert_eq!(progress.status, StatusCode::OK);
+        let json = progress.json();
+        if json["finished"] == true {
+            return json;
+        }
+        assert!(
+            std::time::Instant::now() < deadline,
+            "batch {id} did not finish: {json}"
+        );
+        tokio::time::sleep(Duration::from_millis(200)).await;
+    }
+}
+
+fn tile_of(lon: f64, lat: f64, z: u8) -> TileCoord {
+    let n = f64::from(1u32 << z);
+    let x = ((lon + 180.0) / 360.0 * n) as u32;
+    let lat_r = lat.to_radians();
+    let y =
+        ((1.0 - (lat_r.tan() + 1.0 / lat_r.cos()).ln() / std::f64::consts::PI) / 2.0 * n) as u32;
+    TileCoord::new(u32::from(z), x, y).unwrap()
+}
+
+fn tile_uri(t: TileCoord, roofs: &str) -> String {
+    format!("/tiles/{}/{}/{}.glb?roofs={roofs}", t.z, t.x, t.y)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn stripped_kirchfeld_classified_through_the_api_agrees_with_its_tags_and_changes_tiles() {
+    let dir = tempfile::tempdir().unwrap();
+    let (osm, tags) = stripped_kirchfeld(dir.path());
+    let base = common::imagery::imagery_server().await;
+    let (app, state) = server(
+        dir.path(),
+        &osm,
+        &format!("{base}/ortho/{{z}}/{{x}}/{{y}}.png"),
+    )
+    .await;
+    let area: GeoBbox = AREA.parse().unwrap();
+    let centre = tile_of(
+        (area.min_lon() + area.max_lon()) / 2.0,
+        (area.min_lat() + area.max_lat()) / 2.0,
+        16,
+    );
+
+    // Before any classification: the tile is served at once, with its untagged buildings pending.
+    let before = common::get(&app, &tile_uri(centre, "classified")).await;
+    assert_eq!(before.status, StatusCode::OK);
+    let pending: usize = before
+        .header("x-citymesh-roofs")
+        .strip_prefix("partial, ")
+        .and_then(|r| r.strip_suffix(" pending"))
+        .unwrap_or_else(|| panic!("{}", before.header("x-citymesh-roofs")))
+        .parse()
+        .unwrap();
+    assert!(pending > 50, "{pending}");
+    let plain = common::get(&app, &tile_uri(centre, "osm")).await;
+    assert!(plain.headers.get("x-citymesh-roofs").is_none());
+    // No prediction yet: the same bytes as without the classifier.
+    assert_eq!(before.body, plain.body);
+
+    // Queue the area, with the tagged buildings (all of them, once stripped) and a bad request.
+    let bad = post_json(&app, "/classify", serde_json::json!({"bbox": "nonsense"})).await;
+    assert_eq!(bad.status, StatusCode::BAD_REQUEST, "{}", bad.json());
+    let bad = post_json(&app, "/classify", serde_json::json!({"box": AREA})).await;
+    assert_eq!(bad.status, StatusCode::BAD_REQUEST);
+    assert!(bad.json()["detail"].as_str().unwrap().contains("bbox"));
+    let created = post_json(&app, "/classify", serde_json::json!({"bbox": AREA})).await;
+    assert_eq!(created.status, StatusCode::ACCEPTED, "{}", created.json());
+    let created = created.json();
+    let id = created["id"].as_i64().unwrap();
+    let queued = created["counts"]["queued"].as_u64().unwrap();
+    assert!(queued > 100, "{created}");
+    assert_eq!(created["imagery_id"], "ortho");
+    assert_eq!(created["imagery_attribution"], "rendered by citymesh");
+    // The same area again: nothing new to queue.
+    let again = post_json(&app, "/classify", serde_json::json!({"bbox": AREA})).await;
+    assert_eq!(again.json()["counts"]["queued"], 0);
+    assert_eq!(again.json()["counts"]["already"].as_u64().unwrap(), queued);
+
+    let finished = wait_finished(&app, id).await;
+    assert_eq!(
+        finished["jobs"]["done"].as_u64().unwrap(),
+        queued,
+        "{finished}"
+    );
+    assert_eq!(finished["percent_ended"], 100.0);
+
+    // The predictions against the stripped tags.
+    let answer = common::get(&app, &format!("/classify/predictions?bbox={AREA}")).await;
+    assert_eq!(answer.status, StatusCode::OK);
+    assert_eq!(answer.header("content-type"), "application/geo+json");
+    let collection = answer.json();
+    let features = collection["features"].as_array().unwrap();
+    assert_eq!(features.len() as u64, queued);
+    let mut confusion = [[0usize; 3]; 3];
+    let classes = ["flat", "gabled", "hipped"];
+    for f in features {
+        let p = &f["properties"];
+        let sum: f64 = classes
+            .iter()
+            .map(|c| p["probabilities"][c].as_f64().unwrap())
+            .sum();
+        assert!((sum - 1.0).abs() < 1e-4, "{p}");
+        let tag = tags.get(p["osm_id"].as_str().unwrap()).map(String::as_str);
+        let tag = match tag {
+            Some("pyramidal") => Some("hipped"),
+            t => t,
+        };
+        if let Some(t) = tag.and_then(|t| classes.iter().position(|c| *c == t)) {
+            let q = classes
+                .iter()
+                .position(|c| *c == p["roof_shape"].as_str().unwrap())
+                .unwrap();
+            confusion[t][q] += 1;
+        }
+    }
+    let compared: usize = confusion.iter().flatten().sum();
+    let agree: usize = (0..3).map(|i| confusion[i][i]).sum();
+    let share = agree as f64 / compared as f64;
+    eprintln!(
+        "agreement with the stripped roof:shape tags: {agree}/{compared} = {:.1} %; confusion \
+         (rows: tag flat, gabled, hipped; columns: predicted): {confusion:?}",
+        100.0 * share
+    );
+    assert!(compared >= 100, "{compared}");
+    assert!(share >= 0.80, "{confusion:?}");
+
+    // Statistics with and without the classifier, side by side (the paper's Table 2).
+    let stats = common::get(&app, &format!("/scene/stats?bbox={AREA}&roofs=classified")).await;
+    assert_eq!(stats.status, StatusCode::OK);
+    let stats = stats.json();
+    let without = &stats["without_classifier"];
+    eprintln!("with the classifier: {stats}\nwithout: {without}");
+    assert_eq!(stats["roofs"], "classified");
+    assert_eq!(without["roof_shape_from_tag_percent"], 0.0);
+    assert_eq!(without["roof_shape_from_classifier_percent"], 0.0);
+    assert!(
+        stats["roof_shape_from_classifier_percent"]
+            .as_f64()
+            .unwrap()
+            > 30.0
+    );
+    assert!(
+        stats["flat_roof_percent"].as_f64().unwrap()
+            < without["flat_roof_percent"].as_f64().unwrap()
+    );
+    assert!(stats["triangles"].as_u64().unwrap() > without["triangles"].as_u64().unwrap());
+    assert!(
+        stats["classified_roofs"]["classification_ms"]
+            .as_f64()
+            .unwrap()
+            > 0.0
+    );
+    let plain_stats = common::get(&app, &format!("/scene/stats?bbox={AREA}"))
+        .await
+        .json();
+    assert_eq!(plain_stats["roofs"], "osm");
+    assert!(plain_stats["without_classifier"].is_null());
+    assert_eq!(plain_stats["triangles"], without["triangles"]);
+
+    // The tile now has classified roofs.
+    let after = common::get(&app, &tile_uri(centre, "classified")).await;
+    assert_eq!(after.header("x-citymesh-cache"), "miss");
+    let header = after.header("x-citymesh-roofs").to_owned();
+    assert_ne!(after.body, plain.body);
+    common::assert_valid_glb(&after.body);
+    // Buildings of the tile outside the classified area are still pending.
+    eprintln!("tile {centre:?} after classification: {header}");
+
+    // A new prediction changes exactly the tiles that hold its building: pick a classified
+    // building well inside one tile, and a tile with buildings elsewhere.
+    let (moved_id, home) = features
+        .iter()
+        .find_map(|f| {
+            let ring = f["geometry"]["coordinates"][0].as_array().unwrap();
+            let lon = ring.iter().map(|p| p[0].as_f64().unwrap()).sum::<f64>() / ring.len() as f64;
+            let lat = ring.iter().map(|p| p[1].as_f64().unwrap()).sum::<f64>() / ring.len() as f64;
+            let t = tile_of(lon, lat, 17);
+            let b = t.bounds();
+            let margin = 0.25 * (b.max_lon() - b.min_lon());
+            let inside = lon > b.min_lon() + margin
+                && lon < b.max_lon() - margin
+                && lat > b.min_lat() + margin * 0.66
+                && lat < b.max_lat() - margin * 0.66;
+            (inside && f["properties"]["confident"] == true)
+                .then(|| (f["properties"]["osm_id"].as_str().unwrap().to_owned(), t))
+        })
+        .expect("a confident prediction well inside a z17 tile");
+    let elsewhere = TileCoord::new(17, home.x + 2, home.y).unwrap();
+    for t in [home, elsewhere] {
+        common::get(&app, &tile_uri(t, "classified")).await;
+        let cached = common::get(&app, &tile_uri(t, "classified")).await;
+        assert_eq!(cached.header("x-citymesh-cache"), "hit");
+    }
+    let home_before = common::get(&app, &tile_uri(home, "classified")).await;
+    let entry = state
+        .roofs
+        .index
+        .with(|m| m.get(&moved_id).cloned())
+        .unwrap();
+    let old = entry.prediction.probabilities;
+    // The same confidence, another class.
+    let turned = [old[1], old[2], old[0]];
+    state.roofs.index.insert(
+        moved_id.clone(),
+        entry.footprint_hash.clone(),
+        citymesh::classifier::Prediction::new(turned),
+        1.0,
+    );
+    let home_after = common::get(&app, &tile_uri(home, "classified")).await;
+    assert_eq!(home_after.header("x-citymesh-cache"), "miss", "{moved_id}");
+    assert_ne!(home_after.body, home_before.body);
+    let other = common::get(&app, &tile_uri(elsewhere, "classified")).await;
+    assert_eq!(other.header("x-citymesh-cache"), "hit");
+    // roofs=osm tiles never depend on predictions.
+    let osm_tile = common::get(&app, &tile_uri(home, "osm")).await;
+    common::get(&app, &tile_uri(home, "osm")).await;
+    assert_eq!(
+        common::get(&app, &tile_uri(home, "osm"))
+            .await
+            .header("x-citymesh-cache"),
+        "hit"
+    );
+    assert_ne!(osm_tile.body, home_after.body);
+
+    // Bad parameters.
+    let bad = common::get(&app, &tile_uri(home, "guessed")).await;
+    assert_eq!(bad.status, StatusCode::BAD_REQUEST);
+    assert!(bad.json()["detail"].as_str().unwrap().contains("roofs"));
+    for (uri, status) in [
+        ("/classify/0", StatusCode::BAD_REQUEST),
+        ("/classify/abc", StatusCode::BAD_REQUEST),
+        ("/classify/999999", StatusCode::NOT_FOUND),
+        ("/classify/predictions", StatusCode::BAD_REQUEST),
+    ] {
+        assert_eq!(common::get(&app, uri).await.status, status, "{uri}");
+    }
+    let cancel = send(
+        &app,
+        Request::delete(format!("/classify/{id}"))
+            .body(Body::empty())
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(cancel.status, StatusCode::OK);
+    assert_eq!(cancel.json()["cancelled"], 0);
+    let metrics = String::from_utf8(common::get(&app, "/metrics").await.body).unwrap();
+    assert!(
+        metrics.contains(&format!("citymesh_roof_jobs{{state=\"done\"}} {queued}")),
+        "{metrics}"
+    );
+    assert!(metrics.contains("citymesh_imagery_fetches_total{result=\"ok\"}"));
+    assert!(metrics.contains("citymesh_roof_inference_duration_seconds_count"));
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn classification_is_unavailable_without_classifier_or_imagery() {
+    let dir = tempfile::tempdir().unwrap();
+    let (osm, _) = stripped_kirchfeld(dir.path());
+    let app = common::app_with(
+        &common::dem_dir(),
+        &dir.path().join("c.sqlite"),
+        &["--osm", osm.to_str().unwrap()],
+    )
+    .await;
+    let answer = post_json(&app, "/classify", serde_json::json!({"bbox": AREA})).await;
+    assert_eq!(answer.status, StatusCode::SERVICE_UNAVAILABLE);
+    assert!(
+        answer.json()["detail"]
+            .as_str()
+            .unwrap()
+            .contains("--roof-classifier")
+    );
+    // Classified tiles still serve: every untagged building is pending.
+    let t = tile_of(8.3995, 49.055, 16);
+    let tile = common::get(&app, &tile_uri(t, "classified")).await;
+    assert_eq!(tile.status, StatusCode::OK);
+    assert!(tile.header("x-citymesh-roofs").starts_with("partial, "));
+}
+
+/// A job store's figures, read straight from the database.
+async fn job_figures(db: &Path) -> (HashMap<String, i64>, i64, i64) {
+    let pool = citymesh::db::open(db.to_str().unwrap()).await.unwrap();
+    let states: Vec<(String, i64)> =
+        sqlx::query_as("SELECT state, COUNT(*) FROM roof_jobs GROUP BY state")
+            .fetch_all(&pool)
+            .await
+            .unwrap();
+    let (predictions,): (i64,) = sqlx::query_as("SELECT COUNT(*) FROM roof_predictions")
+        .fetch_one(&pool)
+        .await
+        .unwrap();
+    let (attempts,): (i64,) = sqlx::query_as("SELECT COALESCE(SUM(attempts), 0) FROM roof_jobs")
+        .fetch_one(&pool)
+        .await
+        .unwrap();
+    (states.into_iter().collect(), predictions, attempts)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_server_killed_mid_run_finishes_every_job_exactly_once_after_a_restart() {
+    let dir = tempfile::tempdir().unwrap();
+    let (osm, _) = stripped_kirchfeld(dir.path());
+    let base = common::imagery::imagery_server().await;
+    let grey = format!("{base}/grey/{{z}}/{{x}}/{{y}}.png");
+    let args = [
+        "--osm",
+        osm.to_str().unwrap(),
+        "--roof-classifier",
+        "--imagery-url",
+        &grey,
+        "--classify-lease-s",
+        "3",
+    ];
+    let start = || {
+        let (child, addr, lines) = common::serve_binary(dir.path(), &args);
+        // The log is drained so the server never blocks on a full pipe.
+        std::thread::spawn(move || lines.for_each(drop));
+        (child, format!("http://{addr}"))
+    };
+    let http = reqwest::Client::new();
+    let (mut child, url) = start();
+    let body = http
+        .post(format!("{url}/classify"))
+        .header("content-type", "application/json")
+        .body(serde_json::json!({"bbox": "8.38,49.04,8.42,49.07"}).to_string())
+        .send()
+        .await
+        .unwrap()
+        .bytes()
+        .await
+        .unwrap();
+    let created: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    let id = created["id"].as_i64().unwrap();
+    let queued = created["counts"]["queued"].as_i64().unwrap();
+    assert!(queued >= 1000, "{created}");
+    // Let a part of the run finish, then SIGKILL in the middle of it.
+    let progress = |url: String| {
+        let http = http.clone();
+        async move {
+            let body = http
+                .get(format!("{url}/classify/{id}"))
+                .send()
+                .await
+                .unwrap()
+                .bytes()
+                .await
+                .unwrap();
+            serde_json::from_slice::<serde_json::Value>(&body).unwrap()
+        }
+    };
+    loop {
+        let p = progress(url.clone()).await;
+        if p["jobs"]["done"].as_i64().unwrap() >= 200 {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let db = dir.path().join("c.sqlite");
+    let (states, predictions_at_kill, _) = job_figures(&db).await;
+    let done_at_kill = states.get("done").copied().unwrap_or(0);
+    assert!(done_at_kill < queued, "the run ended before the kill");
+    assert_eq!(predictions_at_kill, done_at_kill);
+    eprintln!("killed with {states:?}");
+
+    // Started again: the jobs the dead worker held come back after their lease.
+    let (mut child, url) = start();
+    let deadline = std::time::Instant::now() + Duration::from_secs(900);
+    loop {
+        let p = progress(url.clone()).await;
+        if p["finished"] == true {
+            break;
+        }
+        assert!(std::time::Instant::now() < deadline, "{p}");
+        tokio::time::sleep(Duration::from_millis(250)).await;
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let (states, predictions, attempts) = job_figures(&db).await;
+    eprintln!("after the restart: {states:?}, {predictions} predictions, {attempts} attempts");
+    assert_eq!(states.get("done").copied(), Some(queued), "{states:?}");
+    assert_eq!(states.len(), 1, "{states:?}");
+    assert_eq!(predictions, queued);
+    // Every job ran once, except those the killed worker held (one claim, at most 16 jobs), which
+    // ran twice.
+    assert!(attempts >= queued && attempts <= queued + 16, "{attempts}");
+}
