@@ -97,9 +97,42 @@ pub struct ImageryArgs {
     /// Imagery requests in flight at most.
     #[arg(long, default_value_t = 4)]
     pub imagery_concurrency: usize,
+
+    /// Hours a fetched imagery tile is kept in the cache database before it is fetched again.
+    #[arg(long, env = "CITYMESH_IMAGERY_TTL_HOURS", default_value_t = 720.0)]
+    pub imagery_ttl_hours: f64,
+
+    /// Most megabytes of imagery tiles kept in the cache database (least recently used go first).
+    #[arg(long, env = "CITYMESH_IMAGERY_CACHE_MB", default_value_t = 512)]
+    pub imagery_cache_mb: u64,
 }
 
 impl ImageryArgs {
+    /// The source these flags describe over the cache database `pool` (fetched tiles kept
+    /// there), with `metrics`; `None` without `--imagery-url`.
+    pub async fn open(
+        &self,
+        pool: &sqlx::SqlitePool,
+        metrics: Option<std::sync::Arc<crate::metrics::Metrics>>,
+    ) -> anyhow::Result<Option<crate::imagery::Imagery>> {
+        let Some(spec) = self.spec() else {
+            return Ok(None);
+        };
+        let ttl =
+            std::time::Duration::from_secs_f64(self.imagery_ttl_hours.clamp(0.0, 1e6) * 3600.0);
+        let cache = crate::imagery::ImageryCache::new(
+            pool.clone(),
+            ttl,
+            self.imagery_cache_mb.saturating_mul(1 << 20),
+        )
+        .await?;
+        let mut imagery = crate::imagery::Imagery::open(spec).await?.with_cache(cache);
+        if let Some(m) = metrics {
+            imagery = imagery.with_metrics(m);
+        }
+        Ok(Some(imagery))
+    }
+
     /// The service these flags describe, `None` without `--imagery-url`.
     pub fn spec(&self) -> Option<crate::imagery::ImagerySpec> {
         let url = self.imagery_url.as_deref()?;

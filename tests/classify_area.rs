@@ -8,7 +8,7 @@ mod common;
 
 use citymesh::classifier::classify_area::agreement;
 use citymesh::classifier::{RoofClassifier, load_classifier};
-use citymesh::imagery::{ImagerySpec, XyzImagery};
+use citymesh::imagery::{Imagery, ImagerySpec};
 use citymesh::jobs::worker::{WorkerConfig, run_round};
 use citymesh::jobs::{RoofJobQueue, Selection, SqliteJobQueue, select_buildings};
 use citymesh_core::geo::GeoBbox;
@@ -35,7 +35,7 @@ fn kirchfeld() -> Vec<BuildingRecord> {
 /// batch's job counts by state and the predictions with their buildings' tags.
 async fn classify(
     records: &[BuildingRecord],
-    imagery: &XyzImagery,
+    imagery: &Imagery,
     classifier: &Arc<dyn RoofClassifier>,
 ) -> (
     std::collections::BTreeMap<String, u64>,
@@ -86,10 +86,11 @@ async fn kirchfeld_roofs_classified_from_rendered_imagery_agree_with_their_tags(
     let base = common::imagery::imagery_server().await;
     let records = kirchfeld();
     let classifier = load_classifier(None, None).unwrap();
-    let imagery = XyzImagery::new(ImagerySpec::xyz(
+    let imagery = Imagery::open(ImagerySpec::xyz(
         "ortho",
         &format!("{base}/ortho/{{z}}/{{x}}/{{y}}.png"),
     ))
+    .await
     .unwrap();
     let (jobs, predictions) = classify(&records, &imagery, &classifier).await;
     assert_eq!(jobs["failed"], 0, "{jobs:?}");
@@ -131,7 +132,7 @@ async fn bad_imagery_fails_jobs_with_a_reason_and_never_the_run() {
         let mut spec = ImagerySpec::xyz(kind, &format!("{base}/{kind}/{{z}}/{{x}}/{{y}}.png"));
         spec.timeout_s = 1.0;
         spec.retries = 0;
-        let imagery = XyzImagery::new(spec).unwrap();
+        let imagery = Imagery::open(spec).await.unwrap();
         // A hang costs the timeout per attempt, so the run ends; 120 s turns a regression into a
         // failure instead of a stuck test.
         let (jobs, predictions) = tokio::time::timeout(
@@ -143,4 +144,77 @@ async fn bad_imagery_fails_jobs_with_a_reason_and_never_the_run() {
         assert_eq!(jobs["failed"], 3, "{kind}: {jobs:?}");
         assert!(predictions.is_empty(), "{kind}");
     }
+}
+
+/// Writes an MBTiles file of `tiles` (PNG bytes by z, x, y).
+async fn write_mbtiles(path: &std::path::Path, tiles: &HashMap<(u8, u32, u32), Vec<u8>>) {
+    use sqlx::sqlite::SqliteConnectOptions;
+    let pool = sqlx::SqlitePool::connect_with(
+        SqliteConnectOptions::new()
+            .filename(path)
+            .create_if_missing(true),
+    )
+    .await
+    .unwrap();
+    sqlx::query("CREATE TABLE metadata (name TEXT, value TEXT)")
+        .execute(&pool)
+        .await
+        .unwrap();
+    sqlx::query(
+        "CREATE TABLE tiles (zoom_level INTEGER, tile_column INTEGER, tile_row INTEGER, \
+         tile_data BLOB)",
+    )
+    .execute(&pool)
+    .await
+    .unwrap();
+    for (&(z, x, y), png) in tiles {
+        sqlx::query("INSERT INTO tiles VALUES (?, ?, ?, ?)")
+            .bind(i64::from(z))
+            .bind(i64::from(x))
+            .bind((1i64 << z) - 1 - i64::from(y))
+            .bind(png)
+            .execute(&pool)
+            .await
+            .unwrap();
+    }
+    pool.close().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn wms_and_mbtiles_sources_give_the_crops_xyz_gives() {
+    let (base, ortho) = common::imagery::imagery_server_with_tiles().await;
+    let records: Vec<BuildingRecord> = kirchfeld()
+        .into_iter()
+        .filter(|r| !r.is_part)
+        .take(24)
+        .collect();
+    let classifier = load_classifier(None, None).unwrap();
+    let open =
+        |url: String| async move { Imagery::open(ImagerySpec::xyz("same", &url)).await.unwrap() };
+    let xyz = open(format!("{base}/ortho/{{z}}/{{x}}/{{y}}.png")).await;
+    let (jobs, from_xyz) = classify(&records, &xyz, &classifier).await;
+    assert_eq!(jobs["done"], 24, "{jobs:?}");
+    let wms = open(format!(
+        "{base}/wms?SERVICE=WMS&REQUEST=GetMap&SRS=EPSG:3857&BBOX={{bbox}}&WIDTH={{width}}&HEIGHT={{height}}"
+    ))
+    .await;
+    let (_, from_wms) = classify(&records, &wms, &classifier).await;
+    // Every tile the runs fetched, as a local MBTiles file.
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("ortho.mbtiles");
+    let tiles = ortho.tiles.lock().unwrap().clone();
+    write_mbtiles(&file, &tiles).await;
+    let mbtiles = open(file.to_str().unwrap().to_owned()).await;
+    let (_, from_mbtiles) = classify(&records, &mbtiles, &classifier).await;
+    let probabilities = |v: &[(Option<String>, citymesh::classifier::Prediction)]| {
+        v.iter().map(|(_, p)| p.probabilities).collect::<Vec<_>>()
+    };
+    assert_eq!(probabilities(&from_wms), probabilities(&from_xyz));
+    assert_eq!(probabilities(&from_mbtiles), probabilities(&from_xyz));
+    // An MBTiles file without the tile fails the job as a 404 would.
+    let empty = dir.path().join("empty.mbtiles");
+    write_mbtiles(&empty, &HashMap::new()).await;
+    let none = open(empty.to_str().unwrap().to_owned()).await;
+    let (jobs, _) = classify(&records[..2], &none, &classifier).await;
+    assert_eq!(jobs["failed"], 2, "{jobs:?}");
 }

@@ -3,7 +3,6 @@
 
 use super::{Prediction, load_classifier};
 use crate::cli::ClassifyArgs;
-use crate::imagery::XyzImagery;
 use crate::jobs::worker::{WorkerConfig, run_round};
 use crate::jobs::{
     RoofJobQueue, Selection, SqliteJobQueue, StoredPrediction, footprint_hash, select_buildings,
@@ -42,11 +41,11 @@ pub async fn run(args: &ClassifyArgs) -> anyhow::Result<String> {
         args.classifier.onnxruntime_lib.as_deref(),
         args.classifier.roof_model.as_deref(),
     )?;
-    let spec = args.imagery.spec().ok_or_else(|| {
+    let pool = crate::db::open(&args.cache_db).await?;
+    let imagery = args.imagery.open(&pool, None).await?.ok_or_else(|| {
         anyhow::anyhow!("--imagery-url is required: the imagery to classify from")
     })?;
-    let imagery = XyzImagery::new(spec)?;
-    let queue = SqliteJobQueue::new(crate::db::open(&args.cache_db).await?);
+    let queue = SqliteJobQueue::new(pool);
     let selection = if args.all {
         Selection::All
     } else {

@@ -2,7 +2,7 @@
 //! (each fetched once per round through the caller's `tiles` map), stitched and cut by the crop
 //! rule.
 
-use super::{ImageryError, XyzImagery};
+use super::{Imagery, ImageryError};
 use crate::classifier::MODEL_RULE;
 use citymesh_core::geo::TileCoord;
 use citymesh_core::roof_image::mosaic::FootprintCrop;
@@ -28,7 +28,7 @@ pub struct CropFailure {
 /// The crop of a footprint (outer ring, lon/lat).
 pub async fn crop_footprint(
     footprint: &[[f64; 2]],
-    imagery: &XyzImagery,
+    imagery: &Imagery,
     tiles: &mut TileMemo,
 ) -> Result<Crop, CropFailure> {
     let fail = |reason: String, retry| CropFailure { reason, retry };

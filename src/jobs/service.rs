@@ -6,7 +6,7 @@ use super::queue::{JobError, RoofJobQueue};
 use super::sqlite::SqliteJobQueue;
 use super::worker::{RoundReport, WorkerConfig, run_worker};
 use crate::classifier::RoofClassifier;
-use crate::imagery::XyzImagery;
+use crate::imagery::Imagery;
 use crate::metrics::{Metrics, StateLabels};
 use std::sync::Arc;
 
@@ -21,7 +21,7 @@ pub struct RoofJobs {
     /// (stored predictions serve tiles even where ONNX Runtime is not installed).
     pub model_id: String,
     /// The imagery service, when configured.
-    pub imagery: Option<Arc<XyzImagery>>,
+    pub imagery: Option<Arc<Imagery>>,
     /// The classifier, when loaded.
     pub classifier: Option<Arc<dyn RoofClassifier>>,
     /// Least top probability that gives a roof its shape.
@@ -37,7 +37,7 @@ impl RoofJobs {
         imagery_id: String,
         imagery_attribution: String,
         model_id: String,
-        imagery: Option<Arc<XyzImagery>>,
+        imagery: Option<Arc<Imagery>>,
         classifier: Option<Arc<dyn RoofClassifier>>,
         threshold: f32,
         metrics: Arc<Metrics>,

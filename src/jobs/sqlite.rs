@@ -327,7 +327,6 @@ impl RoofJobQueue for SqliteJobQueue {
     }
 }
 
-
 fn prediction_of_row(r: &sqlx::sqlite::SqliteRow) -> Result<StoredPrediction, JobError> {
     Ok(StoredPrediction {
         osm_id: r.get(0),

@@ -4,7 +4,7 @@
 
 use super::queue::{ClaimedJob, JobError, RoofJobQueue};
 use crate::classifier::{Prediction, RoofClassifier, classify_blocking};
-use crate::imagery::{TileMemo, XyzImagery, crop_footprint};
+use crate::imagery::{Imagery, TileMemo, crop_footprint};
 use citymesh_core::roof_image::Crop;
 use std::sync::Arc;
 use std::time::Duration;
@@ -50,7 +50,7 @@ pub type SharedOnDone = Arc<dyn Fn(&ClaimedJob, &Prediction, f64) + Send + Sync>
 /// Claims and runs one round of jobs; `Ok(None)` when nothing was queued.
 pub async fn run_round<Q: RoofJobQueue>(
     queue: &Q,
-    imagery: &XyzImagery,
+    imagery: &Imagery,
     classifier: &Arc<dyn RoofClassifier>,
     config: WorkerConfig,
     on_done: OnDone<'_>,
@@ -104,7 +104,7 @@ pub async fn run_round<Q: RoofJobQueue>(
 /// The crop of one job, or why not and whether trying again may help.
 async fn crop_for(
     job: &ClaimedJob,
-    imagery: &XyzImagery,
+    imagery: &Imagery,
     model_id: &str,
     tiles: &mut TileMemo,
 ) -> Result<Crop, (String, bool)> {
@@ -127,7 +127,7 @@ async fn crop_for(
 /// told what each round did.
 pub async fn run_worker<Q: RoofJobQueue>(
     queue: Q,
-    imagery: Arc<XyzImagery>,
+    imagery: Arc<Imagery>,
     classifier: Arc<dyn RoofClassifier>,
     config: WorkerConfig,
     on_done: SharedOnDone,

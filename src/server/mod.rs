@@ -170,12 +170,11 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         ),
         (None, None) => crate::classifier::model_id_of(crate::classifier::MODEL),
     };
-    let imagery = match args.imagery.spec() {
-        Some(spec) => Some(Arc::new(
-            crate::imagery::XyzImagery::new(spec)?.with_metrics(metrics.clone()),
-        )),
-        None => None,
-    };
+    let imagery = args
+        .imagery
+        .open(&pool, Some(metrics.clone()))
+        .await?
+        .map(Arc::new);
     let roofs = Arc::new(
         RoofJobs::new(
             SqliteJobQueue::new(pool.clone()),

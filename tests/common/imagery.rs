@@ -3,7 +3,7 @@
 //! say (a synthetic orthophoto), `/grey/...` a plain grey tile (cheap, for tests of the job
 //! mechanics), and `/missing`, `/garbage`, `/huge`, `/hang` and `/small` bad answers.
 
-use axum::extract::{Path, State};
+use axum::extract::{Path, Query, State};
 use axum::http::{StatusCode, header};
 use axum::response::IntoResponse;
 use citymesh_core::geo::{LocalFrame, TileCoord};
@@ -15,9 +15,9 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
 pub struct Orthophoto {
-    records: Vec<BuildingRecord>,
-    frame: LocalFrame,
-    tiles: Mutex<HashMap<(u8, u32, u32), Vec<u8>>>,
+    pub records: Vec<BuildingRecord>,
+    pub frame: LocalFrame,
+    pub tiles: Mutex<HashMap<(u8, u32, u32), Vec<u8>>>,
 }
 
 fn render_tile(o: &Orthophoto, t: TileCoord) -> Vec<u8> {
@@ -126,6 +126,28 @@ async fn grey() -> impl IntoResponse {
 
 /// Starts the imagery server; returns its base URL.
 pub async fn imagery_server() -> String {
+    imagery_server_with_tiles().await.0
+}
+
+/// A WMS GetMap in EPSG:3857 whose box is exactly an XYZ tile: that tile of the orthophoto.
+async fn wms(
+    State(o): State<Arc<Orthophoto>>,
+    Query(q): Query<HashMap<String, String>>,
+) -> axum::response::Response {
+    const HALF: f64 = 20_037_508.342_789_244;
+    let b: Vec<f64> = q["BBOX"].split(',').map(|v| v.parse().unwrap()).collect();
+    assert_eq!((q["WIDTH"].as_str(), q["HEIGHT"].as_str()), ("256", "256"));
+    let side = b[2] - b[0];
+    let z = (2.0 * HALF / side).log2().round() as u8;
+    let x = ((b[0] + HALF) / side).round() as u32;
+    let y = ((HALF - b[3]) / side).round() as u32;
+    good(State(o), Path((z, x, format!("{y}.png"))))
+        .await
+        .into_response()
+}
+
+/// [`imagery_server`], with the orthophoto whose rendered tiles it keeps (by z, x, y).
+pub async fn imagery_server_with_tiles() -> (String, Arc<Orthophoto>) {
     let all = read_buildings(&super::osm_bytes("karlsruhe-kirchfeld.osm.pbf"))
         .unwrap()
         .buildings;
@@ -136,11 +158,12 @@ pub async fn imagery_server() -> String {
     });
     let app = axum::Router::new()
         .route("/ortho/{z}/{x}/{y}", axum::routing::get(good))
-        .with_state(o)
+        .route("/wms", axum::routing::get(wms))
+        .with_state(o.clone())
         .route("/grey/{z}/{x}/{y}", axum::routing::get(grey))
         .route("/{kind}/{z}/{x}/{y}", axum::routing::get(bad));
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
     let addr = listener.local_addr().unwrap();
     tokio::spawn(async move { axum::serve(listener, app).await.unwrap() });
-    format!("http://{addr}")
+    (format!("http://{addr}"), o)
 }

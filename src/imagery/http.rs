@@ -1,19 +1,52 @@
-//! An XYZ tile service: `{z}/{x}/{y}`, `{-y}` (TMS) or `{q}` (quadkey) URL templates.
+//! Imagery over HTTP: an XYZ tile service (`{z}/{x}/{y}`, `{-y}` for TMS rows, `{q}` for
+//! quadkeys) or a WMS GetMap template (`{bbox}`, `{width}`, `{height}`), fetched politely: a
+//! User-Agent, a cap on requests in flight, a timeout, retries with doubling backoff on 429, 5xx
+//! and timeouts, and a size limit counted while streaming.
 
 use super::{ImageryError, ImagerySpec};
 use citymesh_core::geo::TileCoord;
-use citymesh_core::roof_image::Image;
 use std::time::Duration;
 use tokio::sync::Semaphore;
 
 /// Longest wait between retries.
 const MAX_BACKOFF: Duration = Duration::from_secs(10);
 
-pub struct XyzImagery {
+/// The coordinate system a WMS template asks for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum WmsCrs {
+    /// Web Mercator metres: a tile's box is exact.
+    WebMercator,
+    /// Degrees: the image is linear in latitude and is resampled to Mercator rows.
+    Wgs84,
+}
+
+/// How URLs are made.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum UrlKind {
+    Xyz,
+    Wms(WmsCrs),
+}
+
+impl UrlKind {
+    /// A template with `{bbox}` is WMS; `EPSG:4326` (or `CRS:84`) in it asks for degrees.
+    pub fn of(template: &str) -> Self {
+        if !template.contains("{bbox}") && !template.contains("{bbox_yx}") {
+            return UrlKind::Xyz;
+        }
+        let upper = template.to_ascii_uppercase().replace("%3A", ":");
+        if upper.contains("EPSG:4326") || upper.contains("CRS:84") {
+            UrlKind::Wms(WmsCrs::Wgs84)
+        } else {
+            UrlKind::Wms(WmsCrs::WebMercator)
+        }
+    }
+}
+
+pub struct HttpImagery {
     spec: ImagerySpec,
+    kind: UrlKind,
     http: reqwest::Client,
     permits: Semaphore,
-    metrics: Option<std::sync::Arc<crate::metrics::Metrics>>,
 }
 
 /// The Bing-style quadkey of a tile: one digit per zoom level.
@@ -28,7 +61,10 @@ pub fn quadkey(t: TileCoord) -> String {
         .collect()
 }
 
-impl XyzImagery {
+/// Half the Web Mercator world's width, metres.
+const MERCATOR_HALF: f64 = 20_037_508.342_789_244;
+
+impl HttpImagery {
     pub fn new(spec: ImagerySpec) -> anyhow::Result<Self> {
         let timeout = Duration::from_secs_f64(spec.timeout_s.max(0.1));
         let http = reqwest::Client::builder()
@@ -42,52 +78,54 @@ impl XyzImagery {
             .build()?;
         Ok(Self {
             permits: Semaphore::new(spec.max_concurrent.max(1)),
+            kind: UrlKind::of(&spec.url),
             spec,
             http,
-            metrics: None,
         })
     }
 
-    /// Counts every tile request's result in `metrics`.
-    pub fn with_metrics(self, metrics: std::sync::Arc<crate::metrics::Metrics>) -> Self {
-        Self {
-            metrics: Some(metrics),
-            ..self
-        }
-    }
-
-    pub fn spec(&self) -> &ImagerySpec {
-        &self.spec
+    pub fn kind(&self) -> UrlKind {
+        self.kind
     }
 
     /// The tile's URL from the template.
     pub fn url(&self, t: TileCoord) -> String {
-        let tms = (1u64 << t.z) - 1 - u64::from(t.y);
-        self.spec
-            .url
-            .replace("{z}", &t.z.to_string())
-            .replace("{x}", &t.x.to_string())
-            .replace("{-y}", &tms.to_string())
-            .replace("{y}", &t.y.to_string())
-            .replace("{q}", &quadkey(t))
-    }
-
-    /// The tile as an image in linear light, `tile_size` square.
-    pub async fn tile(&self, t: TileCoord) -> Result<Image, ImageryError> {
-        let result = self.fetch(t).await;
-        if let Some(m) = &self.metrics {
-            let label = match &result {
-                Ok(_) => "ok",
-                Err(e) => e.kind(),
-            };
-            m.imagery_fetches
-                .get_or_create(&crate::metrics::ResultLabels { result: label })
-                .inc();
+        let size = self.spec.tile_size.to_string();
+        match self.kind {
+            UrlKind::Xyz => {
+                let tms = (1u64 << t.z) - 1 - u64::from(t.y);
+                self.spec
+                    .url
+                    .replace("{z}", &t.z.to_string())
+                    .replace("{x}", &t.x.to_string())
+                    .replace("{-y}", &tms.to_string())
+                    .replace("{y}", &t.y.to_string())
+                    .replace("{q}", &quadkey(t))
+            }
+            UrlKind::Wms(crs) => {
+                let b = t.bounds();
+                let [w, s, e, n] = match crs {
+                    WmsCrs::Wgs84 => [b.min_lon(), b.min_lat(), b.max_lon(), b.max_lat()],
+                    WmsCrs::WebMercator => {
+                        let n = f64::from(1u32 << t.z);
+                        let side = 2.0 * MERCATOR_HALF / n;
+                        let west = -MERCATOR_HALF + f64::from(t.x) * side;
+                        let north = MERCATOR_HALF - f64::from(t.y) * side;
+                        [west, north - side, west + side, north]
+                    }
+                };
+                self.spec
+                    .url
+                    .replace("{bbox}", &format!("{w},{s},{e},{n}"))
+                    .replace("{bbox_yx}", &format!("{s},{w},{n},{e}"))
+                    .replace("{width}", &size)
+                    .replace("{height}", &size)
+            }
         }
-        result
     }
 
-    async fn fetch(&self, t: TileCoord) -> Result<Image, ImageryError> {
+    /// The tile's bytes as the service sent them (PNG or JPEG, not yet checked).
+    pub async fn bytes(&self, t: TileCoord) -> Result<Vec<u8>, ImageryError> {
         let mut backoff = Duration::from_millis(250);
         let mut attempt = 0;
         loop {
@@ -100,7 +138,7 @@ impl XyzImagery {
                 self.once(t).await
             };
             let error = match result {
-                Ok(bytes) => return decode(&bytes, self.spec.tile_size),
+                Ok(bytes) => return Ok(bytes),
                 Err(e) => e,
             };
             let retry = matches!(error, ImageryError::Busy(_) | ImageryError::Timeout(_))
@@ -148,28 +186,6 @@ impl XyzImagery {
     }
 }
 
-/// Decodes PNG or JPEG bytes of exactly `size` x `size` pixels.
-fn decode(bytes: &[u8], size: u32) -> Result<Image, ImageryError> {
-    let bad = |detail: String| ImageryError::NotAnImage {
-        expected: size,
-        detail,
-    };
-    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
-        .with_guessed_format()
-        .map_err(|e| bad(e.to_string()))?;
-    let mut limits = image::Limits::default();
-    limits.max_image_width = Some(size);
-    limits.max_image_height = Some(size);
-    limits.max_alloc = Some(64 << 20);
-    reader.limits(limits);
-    let decoded = reader.decode().map_err(|e| bad(e.to_string()))?;
-    if decoded.width() != size || decoded.height() != size {
-        return Err(bad(format!("{}x{}", decoded.width(), decoded.height())));
-    }
-    let rgb: Vec<[u8; 3]> = decoded.into_rgb8().pixels().map(|p| p.0).collect();
-    Image::from_srgb8(size as usize, size as usize, &rgb).ok_or_else(|| bad("pixel count".into()))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -185,8 +201,31 @@ mod tests {
     fn templates_fill_every_placeholder() {
         let mut spec = ImagerySpec::xyz("t", "http://h/{z}/{x}/{y}.png?tms={-y}&q={q}");
         spec.max_zoom = 19;
-        let imagery = XyzImagery::new(spec).unwrap();
+        let imagery = HttpImagery::new(spec).unwrap();
         let t = TileCoord::new(3, 3, 5).unwrap();
         assert_eq!(imagery.url(t), "http://h/3/3/5.png?tms=2&q=213");
+        assert_eq!(imagery.kind(), UrlKind::Xyz);
+    }
+
+    #[test]
+    fn wms_templates_get_the_tile_box_in_their_crs() {
+        let t = TileCoord::new(1, 1, 0).unwrap();
+        let wms = |url: &str| HttpImagery::new(ImagerySpec::xyz("w", url)).unwrap().url(t);
+        // Zoom 1, column 1, row 0: the north-east quarter of the world.
+        assert_eq!(
+            wms("http://h/wms?SRS=EPSG:3857&BBOX={bbox}&WIDTH={width}&HEIGHT={height}"),
+            format!(
+                "http://h/wms?SRS=EPSG:3857&BBOX=0,0,{MERCATOR_HALF},{MERCATOR_HALF}&WIDTH=256&HEIGHT=256"
+            )
+        );
+        let degrees = wms("http://h/wms?VERSION=1.3.0&CRS=EPSG%3A4326&BBOX={bbox_yx}");
+        assert!(
+            degrees.ends_with("BBOX=0,0,85.05112877980659,180"),
+            "{degrees}"
+        );
+        assert_eq!(
+            UrlKind::of("x?crs=epsg:4326&bbox={bbox}"),
+            UrlKind::Wms(WmsCrs::Wgs84)
+        );
     }
 }
