@@ -218,3 +218,99 @@ async fn wms_and_mbtiles_sources_give_the_crops_xyz_gives() {
     let (jobs, _) = classify(&records[..2], &none, &classifier).await;
     assert_eq!(jobs["failed"], 2, "{jobs:?}");
 }
+
+/// Writes the orthophoto's zoom-19 tiles over `area` as one RGB GeoTIFF in EPSG:3857 (strips of
+/// 64 rows), exactly their pixels.
+async fn write_mercator_geotiff(path: &std::path::Path, base: &str, area: &GeoBbox) {
+    use tiff::encoder::{TiffEncoder, colortype};
+    use tiff::tags::Tag;
+    const HALF: f64 = 20_037_508.342_789_244;
+    let range = citymesh_core::geo::TileCoord::covering(area, 19);
+    let tiles: Vec<_> = range.tiles().collect();
+    let (x0, y0) = (
+        tiles.iter().map(|t| t.x).min().unwrap(),
+        tiles.iter().map(|t| t.y).min().unwrap(),
+    );
+    let (x1, y1) = (
+        tiles.iter().map(|t| t.x).max().unwrap(),
+        tiles.iter().map(|t| t.y).max().unwrap(),
+    );
+    let (w, h) = ((x1 - x0 + 1) * 256, (y1 - y0 + 1) * 256);
+    let mut data = vec![0u8; (w * h * 3) as usize];
+    for t in &tiles {
+        let png = reqwest::get(format!("{base}/ortho/19/{}/{}.png", t.x, t.y))
+            .await
+            .unwrap()
+            .bytes()
+            .await
+            .unwrap();
+        let rgb = image::load_from_memory(&png).unwrap().into_rgb8();
+        for (px, py, p) in rgb.enumerate_pixels() {
+            let (gx, gy) = ((t.x - x0) * 256 + px, (t.y - y0) * 256 + py);
+            let at = ((gy * w + gx) * 3) as usize;
+            data[at..at + 3].copy_from_slice(&p.0);
+        }
+    }
+    let side = 2.0 * HALF / f64::from(1u32 << 19);
+    let origin = [-HALF + f64::from(x0) * side, HALF - f64::from(y0) * side];
+    let mut encoder = TiffEncoder::new(std::fs::File::create(path).unwrap()).unwrap();
+    let mut image = encoder.new_image::<colortype::RGB8>(w, h).unwrap();
+    image.rows_per_strip(64).unwrap();
+    let dir = image.encoder();
+    let scale = side / 256.0;
+    dir.write_tag(Tag::Unknown(33_550), &[scale, scale, 0.0][..])
+        .unwrap();
+    dir.write_tag(
+        Tag::Unknown(33_922),
+        &[0.0, 0.0, 0.0, origin[0], origin[1], 0.0][..],
+    )
+    .unwrap();
+    dir.write_tag(
+        Tag::Unknown(34_735),
+        &[1u16, 1, 0, 2, 1024, 0, 1, 1, 3072, 0, 1, 3857][..],
+    )
+    .unwrap();
+    image.write_data(&data).unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_geotiff_source_classifies_as_the_tiles_it_was_made_of() {
+    let base = common::imagery::imagery_server().await;
+    let records: Vec<BuildingRecord> = kirchfeld()
+        .into_iter()
+        .filter(|r| !r.is_part)
+        .take(24)
+        .collect();
+    let (mut lo, mut hi) = ([f64::MAX; 2], [f64::MIN; 2]);
+    for n in records.iter().flat_map(|r| &r.outers[0].nodes) {
+        lo = [lo[0].min(n.lon), lo[1].min(n.lat)];
+        hi = [hi[0].max(n.lon), hi[1].max(n.lat)];
+    }
+    let area = GeoBbox::new(lo[0], lo[1], hi[0], hi[1])
+        .unwrap()
+        .grown_by_metres(80.0);
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("ortho-3857.tif");
+    write_mercator_geotiff(&file, &base, &area).await;
+    let classifier = load_classifier(None, None).unwrap();
+    let mut spec = ImagerySpec::xyz("ortho", &format!("{base}/ortho/{{z}}/{{x}}/{{y}}.png"));
+    spec.max_zoom = 19;
+    let xyz = Imagery::open(spec).await.unwrap();
+    let geotiff = Imagery::open(ImagerySpec::xyz("tif", file.to_str().unwrap()))
+        .await
+        .unwrap();
+    // The file's pixels are zoom 19's: the zoom it offers.
+    assert_eq!(geotiff.spec().max_zoom, 19);
+    let (jobs, from_xyz) = classify(&records, &xyz, &classifier).await;
+    let (tif_jobs, from_tif) = classify(&records, &geotiff, &classifier).await;
+    assert_eq!((jobs["done"], tif_jobs["done"]), (24, 24), "{tif_jobs:?}");
+    // Crops at zoom 19 are the same pixels; those at a lower zoom are resampled from zoom 19
+    // here and rendered at that zoom by the server: the classes agree.
+    let same = from_xyz
+        .iter()
+        .zip(&from_tif)
+        .filter(|(a, b)| a.1.class() == b.1.class())
+        .count();
+    eprintln!("GeoTIFF and XYZ agree on {same} of 24 buildings");
+    assert!(same >= 22, "{same}");
+}

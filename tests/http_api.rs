@@ -149,12 +149,15 @@ async fn openapi_describes_every_route_with_binary_glb_and_json_errors() {
     assert_eq!(
         operations,
         [
+            "DELETE /classify/{id} delete_batch",
             "GET / viewer",
             "GET /3dtiles-renderer tiles_renderer",
             "GET /3dtiles/area/{bbox}/content/{level}/{x}/{y}.glb content",
             "GET /3dtiles/area/{bbox}/subtrees/{level}/{x}/{y}.subtree subtree",
             "GET /3dtiles/tileset.json tileset",
             "GET /cesium cesium",
+            "GET /classify/predictions predictions",
+            "GET /classify/{id} get_batch",
             "GET /health health",
             "GET /metrics metrics",
             "GET /procedural.geojson procedural_geojson",
@@ -164,6 +167,7 @@ async fn openapi_describes_every_route_with_binary_glb_and_json_errors() {
             "GET /scene/stats scene_stats",
             "GET /tiles/{z}/{x}/{y}.glb tile_glb",
             "GET /viewer.js viewer_js",
+            "POST /classify post_classify",
             "POST /scene.glb post_scene",
         ]
     );

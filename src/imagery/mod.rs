@@ -1,17 +1,20 @@
 //! Imagery for the roof classifier, configured by the operator only (never named by a request, so
 //! a client cannot make citymesh fetch from anywhere): XYZ and WMS services over HTTP ([`http`]:
-//! polite fetching), local MBTiles files ([`mbtiles`]), fetched tiles kept in the cache database
+//! polite fetching), local MBTiles files ([`mbtiles`]) and GeoTIFFs read chunk by chunk
+//! ([`geotiff`]), fetched tiles kept in the cache database
 //! ([`cache`]), all behind one [`Imagery`] ([`source`]) that accepts only whole images of the
 //! expected size; [`crops`] cuts a building's crop from them by the model's crop rule.
 
 mod cache;
 mod crops;
+mod geotiff;
 mod http;
 mod mbtiles;
 mod source;
 
 pub use cache::ImageryCache;
 pub use crops::{CropFailure, MAX_TILES_PER_BUILDING, TileMemo, crop_footprint};
+pub use geotiff::{Crs, GeoTiff, MAX_CHUNKS_PER_TILE};
 pub use http::{HttpImagery, UrlKind, WmsCrs, quadkey};
 pub use source::Imagery;
 
@@ -22,7 +25,8 @@ pub struct ImagerySpec {
     pub id: String,
     /// URL template with `{z}`, `{x}`, `{y}` (or `{-y}`, the TMS row from the south), or `{q}`
     /// (a Bing-style quadkey); a WMS GetMap template with `{bbox}` (or `{bbox_yx}`, latitude
-    /// first, for WMS 1.3.0 in EPSG:4326), `{width}` and `{height}`; or a `.mbtiles` file.
+    /// first, for WMS 1.3.0 in EPSG:4326), `{width}` and `{height}`; or a `.mbtiles`, `.tif` or
+    /// `.tiff` file.
     pub url: String,
     /// Deepest zoom the service has.
     pub max_zoom: u8,

@@ -3,6 +3,7 @@
 //! (a whole PNG or JPEG of exactly the tile size) and in Web Mercator rows.
 
 use super::cache::ImageryCache;
+use super::geotiff::GeoTiff;
 use super::http::{HttpImagery, UrlKind, WmsCrs};
 use super::mbtiles::MbTiles;
 use super::{ImageryError, ImagerySpec};
@@ -14,6 +15,7 @@ use std::sync::Arc;
 enum Backend {
     Http(HttpImagery),
     MbTiles(MbTiles),
+    GeoTiff(Arc<GeoTiff>),
 }
 
 pub struct Imagery {
@@ -24,16 +26,27 @@ pub struct Imagery {
 }
 
 impl Imagery {
-    /// The source `spec.url` names: a path ending in `.mbtiles` (or `mbtiles:PATH`) is a local
-    /// file, anything else an HTTP template (WMS when it has `{bbox}`).
+    /// The source `spec.url` names: a path ending in `.mbtiles` (or `mbtiles:PATH`), `.tif` or
+    /// `.tiff` is a local file, anything else an HTTP template (WMS when it has `{bbox}`).
     pub async fn open(spec: ImagerySpec) -> anyhow::Result<Self> {
         let local = spec
             .url
             .strip_prefix("mbtiles:")
             .or_else(|| spec.url.ends_with(".mbtiles").then_some(spec.url.as_str()))
             .map(std::path::PathBuf::from);
+        let lower = spec.url.to_ascii_lowercase();
+        let tiff = [".tif", ".tiff"]
+            .iter()
+            .any(|e| lower.ends_with(e))
+            .then(|| std::path::PathBuf::from(&spec.url));
         let mut spec = spec;
-        let backend = if let Some(path) = local {
+        let backend = if let Some(path) = tiff {
+            let size = spec.tile_size;
+            let (file, native) =
+                tokio::task::spawn_blocking(move || GeoTiff::open(&path, size)).await??;
+            spec.max_zoom = spec.max_zoom.min(native);
+            Backend::GeoTiff(file)
+        } else if let Some(path) = local {
             let (file, max) = MbTiles::open(&path).await?;
             if let Some(max) = max {
                 spec.max_zoom = spec.max_zoom.min(max);
@@ -62,7 +75,7 @@ impl Imagery {
                 cache: Some(cache),
                 ..self
             },
-            Backend::MbTiles(_) => self,
+            Backend::MbTiles(_) | Backend::GeoTiff(_) => self,
         }
     }
 
@@ -110,6 +123,12 @@ impl Imagery {
         let bytes = match &self.backend {
             Backend::Http(http) => http.bytes(t).await?,
             Backend::MbTiles(file) => file.bytes(t).await?,
+            Backend::GeoTiff(file) => {
+                let file = file.clone();
+                return tokio::task::spawn_blocking(move || file.tile(t))
+                    .await
+                    .map_err(|e| ImageryError::Bad(format!("GeoTIFF task: {e}")))?;
+            }
         };
         let image = self.decode(&bytes, t)?;
         if let Some(cache) = &self.cache

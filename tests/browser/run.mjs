@@ -9,6 +9,7 @@
 import { chromium } from 'playwright-core';
 import { PNG } from 'pngjs';
 import { spawn } from 'node:child_process';
+import { createServer } from 'node:http';
 import { mkdirSync, existsSync } from 'node:fs';
 import { resolve, dirname } from 'node:path';
 import { fileURLToPath } from 'node:url';
@@ -21,6 +22,15 @@ mkdirSync(artifacts, { recursive: true });
 const chromiumPath = process.env.CHROMIUM ?? '/usr/bin/chromium';
 if (!existsSync(bin)) { console.error(`${bin} is missing: run cargo build --release`); process.exit(2); }
 if (!existsSync(chromiumPath)) { console.error(`${chromiumPath} is missing: apt-get install chromium`); process.exit(2); }
+
+/** A local imagery server on 127.0.0.1: every XYZ tile a plain 256 x 256 grey PNG. */
+function startImagery() {
+  const png = new PNG({ width: 256, height: 256 });
+  for (let i = 0; i < png.data.length; i += 4) { png.data[i] = png.data[i + 1] = png.data[i + 2] = 120; png.data[i + 3] = 255; }
+  const body = PNG.sync.write(png, { colorType: 2 });
+  const server = createServer((req, res) => { res.writeHead(200, { 'content-type': 'image/png' }); res.end(body); });
+  return new Promise((ok) => server.listen(0, '127.0.0.1', () => ok({ url: `http://127.0.0.1:${server.address().port}`, server })));
+}
 
 function startServer(name, args) {
   return new Promise((ok, fail) => {
@@ -84,10 +94,12 @@ async function open(url, ready, timeout = 120000) {
 }
 
 const servers = [];
+let imagery = null;
 try {
   const karlsruhe = await startServer('karlsruhe', ['--dem-dir', `${data}/dem`, '--osm', `${data}/osm/karlsruhe-kirchfeld.osm.pbf`]);
   const demo = await startServer('demo', ['--dem-dir', resolve(root, 'target/no-dem')]);
   servers.push(karlsruhe.child, demo.child);
+  imagery = await startImagery();
 
   for (const [name, server] of [['karlsruhe', karlsruhe], ['demo city', demo]]) {
     await check(`viewer shows the buildings of ${name}`, async () => {
@@ -131,11 +143,43 @@ try {
       await t.page.close();
     });
   }
+
+  await check('viewer shows roofs classified by queued jobs (roofs=classified)', async () => {
+    const server = await startServer('classifying', ['--dem-dir', `${data}/dem`, '--osm', `${data}/osm/karlsruhe-kirchfeld.osm.pbf`,
+      '--roof-classifier', '--imagery-url', `${imagery.url}/{z}/{x}/{y}.png`, '--imagery-id', 'grey', '--classify-workers', '1']);
+    servers.push(server.child);
+    const posted = await fetch(`${server.url}/classify`, { method: 'POST', headers: { 'content-type': 'application/json' },
+      body: JSON.stringify({ bbox: '8.38,49.04,8.42,49.07' }) });
+    if (posted.status !== 202) throw new Error(`POST /classify: ${posted.status} ${await posted.text()}`);
+    const batch = await posted.json();
+    for (let i = 0; ; i++) {
+      const p = await (await fetch(`${server.url}/classify/${batch.id}`)).json();
+      if (p.finished) { if (p.jobs.done !== batch.counts.queued) throw new Error(JSON.stringify(p)); break; }
+      if (i > 1200) throw new Error(`the batch did not finish: ${JSON.stringify(p)}`);
+      await new Promise((r) => setTimeout(r, 250));
+    }
+    const v = await open(`${server.url}/?roofs=classified`, 'window.citymeshViewer && window.citymeshViewer.ready && window.citymeshViewer.stats');
+    const s = await v.page.evaluate(() => window.citymeshViewer);
+    await v.page.screenshot({ path: `${artifacts}/viewer-classified.png` });
+    if (v.problems.length) throw new Error(v.problems.join('\n'));
+    if (s.tilesLoaded !== s.tilesWanted || s.tilesFailed) throw new Error(`tiles: ${JSON.stringify(s)}`);
+    if (s.roofs !== 'classified' || !s.stats.classified_roofs) throw new Error(`not classified: ${JSON.stringify(s.stats)}`);
+    if (!(s.stats.roof_shape_from_classifier_percent > 0)) throw new Error(`no classified roof: ${JSON.stringify(s.stats)}`);
+    const panel = await v.page.textContent('#stats');
+    if (!panel.includes('roof shapes from the classifier')) throw new Error(`panel: ${panel}`);
+    // The tiles the viewer asked for carry the classified roofs.
+    const tile = await fetch(`${server.url}/tiles/16/34297/22491.glb?roofs=classified`);
+    const roofsHeader = tile.headers.get('x-citymesh-roofs');
+    if (!roofsHeader) throw new Error('no X-Citymesh-Roofs');
+    console.log(`  ${batch.counts.queued} jobs; ${s.stats.roof_shape_from_classifier_percent.toFixed(1)} % of the view's roofs from the classifier; tile: ${roofsHeader}`);
+    await v.page.close();
+  });
 } catch (e) {
   failed++;
   console.log(`browser tests could not run: ${e.stack ?? e}`);
 } finally {
   await browser.close();
+  imagery?.server.close();
   for (const s of servers) s.kill('SIGTERM');
 }
 console.log(`${passed} passed, ${failed} failed`);

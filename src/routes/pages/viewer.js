@@ -12,6 +12,10 @@ const lat0 = parseFloat(q.get('lat') ?? d.lat);
 const zoom = parseInt(q.get('zoom') ?? d.zoom, 10);
 const radius = parseInt(q.get('radius') ?? '1', 10);
 const empty = q.has('empty');
+// `?roofs=classified`: roofs from the roof classifier's predictions where OSM has no roof:shape.
+const roofs = q.get('roofs') === 'classified' ? 'classified' : 'osm';
+const roofsQuery = roofs === 'classified' ? '?roofs=classified' : '';
+state.roofs = roofs;
 document.getElementById('where').textContent = `${lon0.toFixed(5)} E, ${lat0.toFixed(5)} N, tiles of zoom ${zoom}`;
 
 // Metres per degree at the view's latitude (WGS84), as citymesh's local frames use.
@@ -51,7 +55,7 @@ if (!empty) {
   for (let dx = -radius; dx <= radius; dx++) {
     for (let dy = -radius; dy <= radius; dy++) {
       state.tilesWanted++;
-      loader.load(`/tiles/${zoom}/${tx + dx}/${ty + dy}.glb`, (gltf) => {
+      loader.load(`/tiles/${zoom}/${tx + dx}/${ty + dy}.glb${roofsQuery}`, (gltf) => {
         const o = gltf.scene.userData.origin;
         gltf.scene.position.set((o.lon - lon0) * mLon, o.height, -(o.lat - lat0) * mLat);
         group.add(gltf.scene);
@@ -72,13 +76,18 @@ if (!empty) {
 
 // The figures of the area shown.
 const span = (radius + 0.5) * 360 / n;
-fetch(`/scene/stats?bbox=${lon0 - span},${lat0 - span * 0.6},${lon0 + span},${lat0 + span * 0.6}`)
+fetch(`/scene/stats?bbox=${lon0 - span},${lat0 - span * 0.6},${lon0 + span},${lat0 + span * 0.6}&roofs=${roofs}`)
   .then((r) => r.ok ? r.json() : null)
   .then((s) => {
     if (!s) return;
+    state.stats = s;
     const rows = [['buildings', s.buildings.generated], ['triangles', s.triangles],
       ['flat roofs', s.flat_roof_percent.toFixed(1) + ' %'], ['roof shapes from tags', s.roof_shape_from_tag_percent.toFixed(1) + ' %'],
       ['generated in', s.generation_ms.toFixed(1) + ' ms']];
+    if (s.classified_roofs) {
+      rows.splice(4, 0, ['roof shapes from the classifier', s.roof_shape_from_classifier_percent.toFixed(1) + ' %'],
+        ['roofs still pending', s.classified_roofs.pending]);
+    }
     document.getElementById('stats').innerHTML = rows.map(([k, v]) => `<tr><td>${k}</td><td>${v}</td></tr>`).join('');
   }).catch(() => {});
 

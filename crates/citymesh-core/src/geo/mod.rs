@@ -7,6 +7,7 @@ mod implicit;
 mod local_frame;
 mod tile;
 mod tile_range;
+mod utm;
 
 pub use bbox::{BboxError, GeoBbox, MAX_MERCATOR_LAT};
 pub use ecef::{ecef_to_geodetic, geodetic_to_ecef};
@@ -14,3 +15,4 @@ pub use implicit::{ImplicitTile, morton};
 pub use local_frame::{LocalFrame, WGS84_A, WGS84_E2};
 pub use tile::{MAX_ZOOM, TileCoord, TileError, mercator_y};
 pub use tile_range::TileRange;
+pub use utm::UtmZone;

@@ -18,5 +18,5 @@ pub mod synthetic;
 
 pub use class::RoofClass;
 pub use crop::{Crop, CropFrame, CropRule};
-pub use image::Image;
+pub use image::{Image, srgb8_to_linear};
 pub use render::{Camera, Sun};
