@@ -38,6 +38,21 @@ pub struct RoofsQuery {
     pub roofs: Option<RoofsParam>,
 }
 
+/// The `roofs` of a query string (most tile requests have none: nothing to parse then).
+pub fn roofs_of(query: Option<&str>) -> Result<RoofsParam, AppError> {
+    match query {
+        None | Some("") => Ok(RoofsParam::default()),
+        Some(q) => serde_urlencoded::from_str::<RoofsQuery>(q)
+            .map(|r| r.roofs.unwrap_or_default())
+            .map_err(|e| {
+                AppError::bad_request(
+                    "invalid_query",
+                    format!("{e}: roofs is `osm` (the default) or `classified`"),
+                )
+            }),
+    }
+}
+
 /// Checks a `bbox` parameter against the format, the area limit and the ground-cell limit (the
 /// ground's cost: a long thin box has a small area but many cells).
 pub fn parse_bbox(text: Option<&str>, limits: &Limits) -> Result<GeoBbox, AppError> {

@@ -1,13 +1,15 @@
 //! `GET /tiles/{z}/{x}/{y}.glb`: Web Mercator XYZ tiles, through the tile cache.
 
-use super::params::RoofsQuery;
+use super::conditional::cached_response;
+use super::params::{RoofsQuery, roofs_of};
 use super::roofs::cached_tile;
 use super::schemas::GlbBytes;
 use crate::cache::TileKey;
 use crate::error::{AppError, ErrorBody};
+use crate::pipeline::{Buildings, RoofsParam, generate};
 use crate::state::AppState;
-use axum::extract::rejection::{PathRejection, QueryRejection};
-use axum::extract::{Path, Query, State};
+use axum::extract::rejection::PathRejection;
+use axum::extract::{Path, RawQuery, State};
 use axum::http::HeaderMap;
 use axum::response::Response;
 use citymesh_core::geo::TileCoord;
@@ -47,10 +49,9 @@ pub async fn tile_glb(
     State(state): State<AppState>,
     request_headers: HeaderMap,
     path: Result<Path<(String, String, String)>, PathRejection>,
-    query: Result<Query<RoofsQuery>, QueryRejection>,
+    RawQuery(query): RawQuery,
 ) -> Result<Response, AppError> {
     let Path((z, x, y)) = path.map_err(|e| AppError::bad_request("invalid_tile", e.body_text()))?;
-    let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
     let tile = parse_tile(&z, &x, &y)?;
     let limits = state.limits;
     if tile.z < limits.min_zoom || tile.z > limits.max_zoom {
@@ -62,14 +63,35 @@ pub async fn tile_glb(
             ),
         ));
     }
-    cached_tile(
-        &state,
-        &request_headers,
-        TileKey::xyz(tile),
-        query.roofs.unwrap_or_default(),
-        TILE_CACHE_CONTROL,
-    )
-    .await
+    let key = TileKey::xyz(tile);
+    match roofs_of(query.as_deref())? {
+        // The common case stays as lean as a plain cached tile.
+        RoofsParam::Osm => {
+            let (cached, level) = state
+                .tiles
+                .get_or_generate(key, || async {
+                    let g = generate(&state, key.tile.area(), Buildings::FromSource, None).await?;
+                    Ok::<_, AppError>((g.glb, g.stats))
+                })
+                .await?;
+            Ok(cached_response(
+                &request_headers,
+                cached,
+                level,
+                TILE_CACHE_CONTROL,
+            ))
+        }
+        RoofsParam::Classified => {
+            cached_tile(
+                &state,
+                &request_headers,
+                key,
+                RoofsParam::Classified,
+                TILE_CACHE_CONTROL,
+            )
+            .await
+        }
+    }
 }
 
 /// Tiles change only when their data does: clients may keep them an hour, then revalidate with
