@@ -222,6 +222,19 @@ async fn stripped_kirchfeld_classified_through_the_api_agrees_with_its_tags_and_
     );
     assert!(compared >= 100, "{compared}");
     assert!(share >= 0.80, "{confusion:?}");
+    // The predictions' own FeatureCollection names the same buildings: all classified already.
+    let again = post_json(&app, "/classify", collection.clone()).await;
+    assert_eq!(again.status, StatusCode::ACCEPTED, "{}", again.json());
+    assert_eq!(again.json()["counts"]["queued"], 0);
+    assert_eq!(again.json()["counts"]["already"].as_u64().unwrap(), queued);
+    let no_id = post_json(
+        &app,
+        "/classify",
+        serde_json::json!({"type": "FeatureCollection", "features": [{"type": "Feature", "properties": {}, "geometry": null}]}),
+    )
+    .await;
+    assert_eq!(no_id.status, StatusCode::BAD_REQUEST);
+    assert!(no_id.json()["detail"].as_str().unwrap().contains("osm_id"));
 
     // Statistics with and without the classifier, side by side (the paper's Table 2).
     let stats = common::get(&app, &format!("/scene/stats?bbox={AREA}&roofs=classified")).await;
@@ -249,6 +262,7 @@ async fn stripped_kirchfeld_classified_through_the_api_agrees_with_its_tags_and_
             .unwrap()
             > 0.0
     );
+    assert_eq!(stats["imagery_attribution"], "rendered by citymesh");
     let plain_stats = common::get(&app, &format!("/scene/stats?bbox={AREA}"))
         .await
         .json();
@@ -342,6 +356,10 @@ async fn stripped_kirchfeld_classified_through_the_api_agrees_with_its_tags_and_
     .await;
     assert_eq!(cancel.status, StatusCode::OK);
     assert_eq!(cancel.json()["cancelled"], 0);
+    assert_eq!(
+        common::get(&app, &format!("/classify/{id}")).await.status,
+        StatusCode::NOT_FOUND
+    );
     let metrics = String::from_utf8(common::get(&app, "/metrics").await.body).unwrap();
     assert!(
         metrics.contains(&format!("citymesh_roof_jobs{{state=\"done\"}} {queued}")),

@@ -43,6 +43,89 @@ pub struct ClassifyRequest {
     pub include_tagged: bool,
 }
 
+/// What to classify: a box, or the buildings a GeoJSON FeatureCollection names.
+#[derive(Debug, Deserialize, ToSchema)]
+#[serde(untagged)]
+pub enum ClassifyBody {
+    Area(ClassifyRequest),
+    Features(FeatureSelection),
+}
+
+/// A GeoJSON FeatureCollection whose features name buildings by `properties.osm_id` (`way/123`,
+/// `relation/45`; `@id` and `id` are read too), such as `GET /classify/predictions` answers or
+/// an export from another tool. The area searched is the extent of the features' geometry.
+#[derive(Debug, Deserialize, ToSchema)]
+pub struct FeatureSelection {
+    /// `FeatureCollection`.
+    #[serde(rename = "type")]
+    pub kind: String,
+    /// At most 20,000 features, each with a geometry and an OSM id.
+    #[schema(value_type = Vec<Object>)]
+    pub features: Vec<serde_json::Value>,
+    #[serde(default)]
+    pub include_tagged: bool,
+}
+
+impl FeatureSelection {
+    /// The box around the features' coordinates and their OSM ids.
+    fn area_and_ids(&self) -> Result<(String, Vec<String>), AppError> {
+        let bad = |detail: String| AppError::bad_request("invalid_geojson", detail);
+        if self.kind != "FeatureCollection" {
+            return Err(bad(format!(
+                "type is '{}', not FeatureCollection",
+                self.kind
+            )));
+        }
+        if self.features.is_empty() || self.features.len() > MAX_JOBS_PER_BATCH {
+            return Err(bad(format!(
+                "{} features: send 1 to {MAX_JOBS_PER_BATCH}",
+                self.features.len()
+            )));
+        }
+        let (mut lo, mut hi) = ([f64::MAX; 2], [f64::MIN; 2]);
+        let mut ids = Vec::with_capacity(self.features.len());
+        for (i, f) in self.features.iter().enumerate() {
+            let p = &f["properties"];
+            let id = ["osm_id", "@id", "id"]
+                .iter()
+                .find_map(|k| p[*k].as_str())
+                .ok_or_else(|| bad(format!("feature {i} has no properties.osm_id")))?;
+            ids.push(id.to_owned());
+            let mut points = 0;
+            visit_positions(&f["geometry"]["coordinates"], 0, &mut |lon, lat| {
+                lo = [lo[0].min(lon), lo[1].min(lat)];
+                hi = [hi[0].max(lon), hi[1].max(lat)];
+                points += 1;
+            });
+            if points == 0 {
+                return Err(bad(format!("feature {i} ({id}) has no coordinates")));
+            }
+        }
+        Ok((format!("{},{},{},{}", lo[0], lo[1], hi[0], hi[1]), ids))
+    }
+}
+
+/// Calls `f` with every `[lon, lat, ...]` position of GeoJSON coordinates (nested at most 4
+/// deep, as MultiPolygons are).
+fn visit_positions(v: &serde_json::Value, depth: u8, f: &mut dyn FnMut(f64, f64)) {
+    let Some(items) = v.as_array() else {
+        return;
+    };
+    match (
+        items.first().and_then(serde_json::Value::as_f64),
+        items.get(1).and_then(serde_json::Value::as_f64),
+    ) {
+        (Some(lon), Some(lat)) if lon.is_finite() && lat.is_finite() => f(lon, lat),
+        (Some(_), Some(_)) => {}
+        _ if depth < 4 => {
+            for item in items {
+                visit_positions(item, depth + 1, f);
+            }
+        }
+        _ => {}
+    }
+}
+
 /// A batch as queued.
 #[derive(Debug, Serialize, ToSchema)]
 pub struct BatchCreated {
@@ -84,7 +167,8 @@ fn bad_json(e: JsonRejection) -> AppError {
     AppError::bad_request(
         "invalid_body",
         format!(
-            "{}; send JSON like {{\"bbox\": \"8.400,49.010,8.409,49.017\"}}",
+            "{}; send JSON like {{\"bbox\": \"8.400,49.010,8.409,49.017\"}}, or a GeoJSON \
+             FeatureCollection whose features have properties.osm_id",
             e.body_text()
         ),
     )
@@ -103,13 +187,30 @@ fn batch_id(path: Result<Path<String>, PathRejection>) -> Result<i64, AppError> 
         })
 }
 
+/// A batch that exists and was not deleted (a deleted batch is gone for clients; its finished
+/// jobs keep their predictions).
+async fn live_batch(state: &AppState, id: i64) -> Result<BatchProgress, AppError> {
+    match state.roofs.queue.progress(id).await? {
+        Some(p) if !p.cancelled => Ok(p),
+        Some(_) => Err(AppError::not_found(
+            "no_such_batch",
+            format!("batch {id} was deleted"),
+        )),
+        None => Err(AppError::not_found(
+            "no_such_batch",
+            format!("no batch {id}"),
+        )),
+    }
+}
+
 /// Queue roof classification for the buildings of an area.
 ///
 /// Queues one job per building without `roof:shape` (and without building parts) whose
-/// footprint's centre lies in the box, unless it is already queued or classified for the same
+/// footprint's centre lies in the box (or, for a GeoJSON FeatureCollection, each building its
+/// features name by `properties.osm_id`), unless it is already queued or classified for the same
 /// footprint, imagery and model. Answers at once with the batch id and counts; follow it at
 /// `GET /classify/{id}`. Needs the server started with `--roof-classifier` and `--imagery-url`.
-#[utoipa::path(post, path = "/classify", tag = "classification", request_body = ClassifyRequest,
+#[utoipa::path(post, path = "/classify", tag = "classification", request_body = ClassifyBody,
     responses(
         (status = 202, description = "The batch is queued", body = BatchCreated),
         (status = 400, description = "The body or the bbox is invalid, or the area has too many buildings", body = ErrorBody),
@@ -121,9 +222,19 @@ fn batch_id(path: Result<Path<String>, PathRejection>) -> Result<i64, AppError> 
     ))]
 pub async fn post_classify(
     State(state): State<AppState>,
-    body: Result<Json<ClassifyRequest>, JsonRejection>,
+    body: Result<Json<ClassifyBody>, JsonRejection>,
 ) -> Result<Response, AppError> {
-    let Json(request) = body.map_err(bad_json)?;
+    let request = match body.map_err(bad_json)? {
+        Json(ClassifyBody::Area(request)) => request,
+        Json(ClassifyBody::Features(selection)) => {
+            let (bbox, ids) = selection.area_and_ids()?;
+            ClassifyRequest {
+                bbox,
+                osm_ids: Some(ids),
+                include_tagged: selection.include_tagged,
+            }
+        }
+    };
     let roofs = state.roofs.clone();
     if let Some(why) = roofs.why_not_running() {
         return Err(AppError::Unavailable {
@@ -210,12 +321,7 @@ pub async fn get_batch(
     path: Result<Path<String>, PathRejection>,
 ) -> Result<Json<BatchStatus>, AppError> {
     let id = batch_id(path)?;
-    let progress = state
-        .roofs
-        .queue
-        .progress(id)
-        .await?
-        .ok_or_else(|| AppError::not_found("no_such_batch", format!("no batch {id}")))?;
+    let progress = live_batch(&state, id).await?;
     let total: u64 = progress.jobs.values().sum();
     let ended = progress.jobs["done"] + progress.jobs["failed"] + progress.jobs["cancelled"];
     Ok(Json(BatchStatus {
@@ -229,7 +335,8 @@ pub async fn get_batch(
     }))
 }
 
-/// Cancel a batch's queued jobs (running ones finish; done ones keep their predictions).
+/// Delete a batch: its queued jobs are cancelled (running ones finish; done ones keep their
+/// predictions), and the batch is gone (`GET` answers 404).
 #[utoipa::path(delete, path = "/classify/{id}", tag = "classification",
     params(("id" = i64, Path, description = "The batch id", minimum = 1)),
     responses(
@@ -243,6 +350,7 @@ pub async fn delete_batch(
     path: Result<Path<String>, PathRejection>,
 ) -> Result<Json<BatchCancelled>, AppError> {
     let id = batch_id(path)?;
+    live_batch(&state, id).await?;
     let cancelled = state
         .roofs
         .queue

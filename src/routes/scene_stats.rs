@@ -40,6 +40,8 @@ pub struct SceneStats {
     /// With `roofs=classified`: the same scene without the classifier (the paper's Table 2
     /// columns side by side).
     pub without_classifier: Option<PaperFigures>,
+    /// With `roofs=classified`: whom to credit for the imagery the roofs were classified from.
+    pub imagery_attribution: Option<String>,
     pub buildings: BuildingFigures,
     pub ground: GroundFigures,
 }
@@ -142,6 +144,7 @@ pub async fn scene_stats(
     if roofs == RoofsParam::Classified {
         let (plain, _) = generate_with_roofs(&state, area, RoofsParam::Osm).await?;
         stats.without_classifier = Some(PaperFigures::of(&plain));
+        stats.imagery_attribution = Some(state.roofs.imagery_attribution.clone());
     }
     Ok(Json(stats))
 }
@@ -204,6 +207,7 @@ impl SceneStats {
             },
             classified_roofs: classified,
             without_classifier: None,
+            imagery_attribution: None,
             buildings: BuildingFigures {
                 generated: b.generated,
                 parts: b.parts,

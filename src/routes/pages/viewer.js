@@ -88,6 +88,7 @@ fetch(`/scene/stats?bbox=${lon0 - span},${lat0 - span * 0.6},${lon0 + span},${la
       rows.splice(4, 0, ['roof shapes from the classifier', s.roof_shape_from_classifier_percent.toFixed(1) + ' %'],
         ['roofs still pending', s.classified_roofs.pending]);
     }
+    if (s.imagery_attribution) rows.push(['roofs classified from', s.imagery_attribution]);
     document.getElementById('stats').innerHTML = rows.map(([k, v]) => `<tr><td>${k}</td><td>${v}</td></tr>`).join('');
   }).catch(() => {});
 
