@@ -159,14 +159,8 @@ pub async fn run(args: &ClassifyArgs) -> anyhow::Result<String> {
 
 /// The box around every job's footprint.
 fn area_of(jobs: &[crate::jobs::NewJob]) -> Option<GeoBbox> {
-    let (mut lo, mut hi) = ([f64::MAX; 2], [f64::MIN; 2]);
-    for p in jobs.iter().flat_map(|j| &j.footprint) {
-        for k in 0..2 {
-            lo[k] = lo[k].min(p[k]);
-            hi[k] = hi[k].max(p[k]);
-        }
-    }
-    GeoBbox::new(lo[0], lo[1], hi[0], hi[1]).ok()
+    let [w, s, e, n] = crate::jobs::ring_bounds(jobs.iter().flat_map(|j| &j.footprint))?;
+    GeoBbox::new(w, s, e, n).ok()
 }
 
 /// How predictions agree with the tags that name one of the three classes.

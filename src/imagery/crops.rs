@@ -57,9 +57,7 @@ pub async fn crop_footprint(
         match tiles.get(&t) {
             Some(Ok(image)) => got.push((t, image.clone())),
             Some(Err(e)) => {
-                let retry = matches!(e, ImageryError::Busy(_) | ImageryError::Timeout(_))
-                    || matches!(e, ImageryError::Bad(m) if m.starts_with("HTTP 5"));
-                return Err(fail(format!("no_imagery: {e}"), retry));
+                return Err(fail(format!("no_imagery: {e}"), e.may_pass()));
             }
             None => return Err(fail("no_imagery".into(), true)),
         }

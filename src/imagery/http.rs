@@ -141,9 +141,7 @@ impl HttpImagery {
                 Ok(bytes) => return Ok(bytes),
                 Err(e) => e,
             };
-            let retry = matches!(error, ImageryError::Busy(_) | ImageryError::Timeout(_))
-                || matches!(&error, ImageryError::Bad(m) if m.starts_with("HTTP 5"));
-            if !retry || attempt >= self.spec.retries {
+            if !error.may_pass() || attempt >= self.spec.retries {
                 return Err(error);
             }
             tokio::time::sleep(backoff.min(MAX_BACKOFF)).await;

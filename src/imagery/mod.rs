@@ -79,6 +79,12 @@ pub enum ImageryError {
 }
 
 impl ImageryError {
+    /// Whether asking again later may succeed (rate limits, timeouts, server errors).
+    pub fn may_pass(&self) -> bool {
+        matches!(self, ImageryError::Busy(_) | ImageryError::Timeout(_))
+            || matches!(self, ImageryError::Bad(m) if m.starts_with("HTTP 5"))
+    }
+
     /// A stable short name for reasons and metrics.
     pub fn kind(&self) -> &'static str {
         match self {

@@ -17,7 +17,7 @@ pub mod worker;
 pub use index::{IndexedPrediction, PredictionIndex};
 pub use queue::{
     BatchCounts, BatchProgress, ClaimedJob, JobError, NewJob, RoofJobQueue, StoredPrediction,
-    footprint_hash,
+    footprint_hash, ring_bounds,
 };
 pub use select::{Selection, select_buildings};
 pub use service::RoofJobs;

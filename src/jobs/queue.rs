@@ -27,6 +27,22 @@ pub fn footprint_hash(footprint: &[[f64; 2]]) -> String {
     format!("{:016x}", xxhash_rust::xxh3::xxh3_64(text.as_bytes()))
 }
 
+/// The box of lon/lat points: `[west, south, east, north]`, `None` without points.
+pub fn ring_bounds<'a>(points: impl IntoIterator<Item = &'a [f64; 2]>) -> Option<[f64; 4]> {
+    let mut points = points.into_iter();
+    let first = points.next()?;
+    let mut b = [first[0], first[1], first[0], first[1]];
+    for p in points {
+        b = [
+            b[0].min(p[0]),
+            b[1].min(p[1]),
+            b[2].max(p[0]),
+            b[3].max(p[1]),
+        ];
+    }
+    Some(b)
+}
+
 /// A batch as made: jobs queued, buildings already queued or classified, and skipped ones.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct BatchCounts {

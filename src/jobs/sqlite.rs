@@ -2,7 +2,7 @@
 
 use super::queue::{
     BatchCounts, BatchProgress, ClaimedJob, JobError, MAX_ATTEMPTS, NewJob, RoofJobQueue,
-    StoredPrediction, footprint_hash,
+    StoredPrediction, footprint_hash, ring_bounds,
 };
 use crate::classifier::Prediction;
 use citymesh_core::geo::GeoBbox;
@@ -153,13 +153,7 @@ impl RoofJobQueue for SqliteJobQueue {
         prediction: Prediction,
         work_ms: f64,
     ) -> Result<bool, JobError> {
-        let (mut lo, mut hi) = ([f64::MAX; 2], [f64::MIN; 2]);
-        for p in &job.footprint {
-            for k in 0..2 {
-                lo[k] = lo[k].min(p[k]);
-                hi[k] = hi[k].max(p[k]);
-            }
-        }
+        let [west, south, east, north] = ring_bounds(&job.footprint).unwrap_or([0.0; 4]);
         let now = now_ms();
         let p = prediction.probabilities;
         let mut tx = self.pool.begin().await?;
@@ -191,10 +185,10 @@ impl RoofJobQueue for SqliteJobQueue {
         .bind(f64::from(p[1]))
         .bind(f64::from(p[2]))
         .bind(ring_json(&job.footprint))
-        .bind(lo[0])
-        .bind(lo[1])
-        .bind(hi[0])
-        .bind(hi[1])
+        .bind(west)
+        .bind(south)
+        .bind(east)
+        .bind(north)
         .bind(now)
         .bind(work_ms)
         .execute(&mut *tx)

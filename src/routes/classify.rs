@@ -6,7 +6,9 @@
 
 use super::params::parse_bbox;
 use crate::error::{AppError, ErrorBody};
-use crate::jobs::{BatchCounts, BatchProgress, RoofJobQueue, Selection, select_buildings};
+use crate::jobs::{
+    BatchCounts, BatchProgress, RoofJobQueue, Selection, ring_bounds, select_buildings,
+};
 use crate::state::AppState;
 use axum::Json;
 use axum::extract::rejection::{JsonRejection, PathRejection, QueryRejection};
@@ -422,15 +424,8 @@ pub async fn predictions(
 
 /// The centre of a ring's bounding box.
 fn centre_of(ring: &[[f64; 2]]) -> Option<[f64; 2]> {
-    let first = ring.first()?;
-    let (mut lo, mut hi) = (*first, *first);
-    for p in ring {
-        for k in 0..2 {
-            lo[k] = lo[k].min(p[k]);
-            hi[k] = hi[k].max(p[k]);
-        }
-    }
-    Some([(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0])
+    let [w, s, e, n] = ring_bounds(ring)?;
+    Some([(w + e) / 2.0, (s + n) / 2.0])
 }
 
 /// A lon/lat ring's area in m² (shoelace on an equirectangular projection at its latitude).

@@ -16,22 +16,9 @@ use utoipa::ToSchema;
 /// The statistics of the paper's Tables 2 and 3 for one scene, and what was skipped.
 #[derive(Debug, Serialize, ToSchema)]
 pub struct SceneStats {
-    /// Generation time of the mesh and its GLB, milliseconds.
-    pub generation_ms: f64,
-    /// Vertices and triangles in the GLB (ground and buildings).
-    pub vertices: usize,
-    pub triangles: usize,
-    /// Size of the GLB `/scene.glb` returns for the same box.
-    pub glb_bytes: usize,
-    /// Share of flat roofs among generated buildings, percent.
-    pub flat_roof_percent: f64,
-    /// Share of roof shapes taken from `roof:shape` tags, percent (the rest are from the
-    /// classifier, defaults, or unsupported shapes rendered flat).
-    pub roof_shape_from_tag_percent: f64,
-    /// Share of roof shapes from the roof classifier, percent (0 with `roofs=osm`).
-    pub roof_shape_from_classifier_percent: f64,
-    /// Share of roofs given the default (flat) shape, percent.
-    pub roof_shape_default_percent: f64,
+    /// The paper's figures: time, vertices, triangles, bytes, and where roof shapes came from.
+    #[serde(flatten)]
+    pub figures: PaperFigures,
     /// `osm` or `classified`.
     pub roofs: RoofsParam,
     /// With `roofs=classified`: untagged buildings classified, below the threshold, and still
@@ -49,13 +36,21 @@ pub struct SceneStats {
 /// The figures of the paper's Tables 2 and 3 for one scene.
 #[derive(Debug, Serialize, ToSchema)]
 pub struct PaperFigures {
+    /// Generation time of the mesh and its GLB, milliseconds.
     pub generation_ms: f64,
+    /// Vertices and triangles in the GLB (ground and buildings).
     pub vertices: usize,
     pub triangles: usize,
+    /// Size of the GLB `/scene.glb` returns for the same box.
     pub glb_bytes: usize,
+    /// Share of flat roofs among generated buildings, percent.
     pub flat_roof_percent: f64,
+    /// Share of roof shapes taken from `roof:shape` tags, percent (the rest are from the
+    /// classifier, defaults, or unsupported shapes rendered flat).
     pub roof_shape_from_tag_percent: f64,
+    /// Share of roof shapes from the roof classifier, percent (0 with `roofs=osm`).
     pub roof_shape_from_classifier_percent: f64,
+    /// Share of roofs given the default (flat) shape, percent.
     pub roof_shape_default_percent: f64,
 }
 
@@ -190,16 +185,8 @@ impl SceneStats {
     pub fn of(generated: &Generated, classified: Option<RoofFigures>) -> Self {
         let s = &generated.stats;
         let b = &s.buildings;
-        let [tag, classifier, default] = roof_sources(generated);
         SceneStats {
-            generation_ms: s.generation_ms,
-            vertices: s.vertices,
-            triangles: s.triangles,
-            glb_bytes: generated.glb.len(),
-            flat_roof_percent: b.flat_roof_percent(),
-            roof_shape_from_tag_percent: tag,
-            roof_shape_from_classifier_percent: classifier,
-            roof_shape_default_percent: default,
+            figures: PaperFigures::of(generated),
             roofs: if classified.is_some() {
                 RoofsParam::Classified
             } else {
