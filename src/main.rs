@@ -3,6 +3,11 @@
 use citymesh::cli::{Cli, Command};
 use clap::Parser;
 
+// mimalloc keeps freed pages for the next request instead of handing a scene's buffers back to
+// the kernel and faulting them in again (a fifth of generation time with glibc's allocator).
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 #[tokio::main]
 async fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();

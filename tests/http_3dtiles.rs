@@ -179,7 +179,9 @@ async fn the_tileset_subtree_and_content_follow_3d_tiles_1_1() {
             .replace("{y}", &y.to_string());
         let c = get(&app, &format!("/3dtiles/{uri}")).await;
         assert_eq!(c.status, StatusCode::OK, "{uri}");
+        // Meshopt by default: valid as sent, and valid in full once decoded.
         assert_valid_glb(&c.body);
+        assert_valid_glb(&common::decode::decode_meshopt(&c.body));
     }
     let missing = (0..n)
         .flat_map(|x| (0..n).map(move |y| (x, y)))
@@ -196,36 +198,17 @@ async fn the_tileset_subtree_and_content_follow_3d_tiles_1_1() {
     }
 }
 
-/// Positions of a content glb mapped to ECEF through its node matrix and the 3D Tiles y-up to
-/// z-up transform, with the material of each.
+/// Positions of a content glb (in any encoding: content is meshopt by default) mapped to ECEF
+/// through its node matrix (read in f64, as 3D Tiles clients do) and the 3D Tiles y-up to z-up
+/// transform, with the material of each.
 fn ecef_positions(glb: &[u8]) -> Vec<([f64; 3], String)> {
-    let gltf = gltf::Gltf::from_slice(glb).unwrap();
-    let blob = gltf.blob.as_deref().unwrap();
-    let node = gltf.nodes().next().unwrap();
-    // The matrix as the JSON has it, in f64 (the gltf crate gives f32, which cannot hold ECEF
-    // translations to the centimetre; 3D Tiles clients read doubles).
-    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
-    let doc: Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
-    let flat: Vec<f64> = doc["nodes"][0]["matrix"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_f64().unwrap())
-        .collect();
-    let m: Vec<[f64; 4]> = flat.chunks(4).map(|c| [c[0], c[1], c[2], c[3]]).collect();
-    let mut out = Vec::new();
-    for prim in node.mesh().unwrap().primitives() {
-        let material = prim.material().name().unwrap_or_default().to_owned();
-        for p in prim.reader(|_| Some(blob)).read_positions().unwrap() {
-            let p = p.map(f64::from);
-            // glTF node matrix (column-major), then y-up to z-up: (x, y, z) -> (x, -z, y).
-            let q: Vec<f64> = (0..3)
-                .map(|r| m[0][r] * p[0] + m[1][r] * p[1] + m[2][r] * p[2] + m[3][r])
-                .collect();
-            out.push(([q[0], -q[2], q[1]], material.clone()));
-        }
-    }
-    out
+    common::decode::triangles(glb)
+        .into_iter()
+        .flat_map(|t| {
+            // y-up to z-up: (x, y, z) -> (x, -z, y).
+            t.corners.map(|q| ([q[0], -q[2], q[1]], t.material.clone()))
+        })
+        .collect()
 }
 
 #[tokio::test]

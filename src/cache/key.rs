@@ -3,6 +3,8 @@
 //! and `--osm` files) is the cache's data version, fixed for a running server.
 
 use citymesh_core::geo::{GeoBbox, ImplicitTile, TileCoord};
+/// How the bytes are encoded (the core's encodings: plain, quantized, meshopt).
+pub use citymesh_core::mesh::Encoding;
 use citymesh_core::scene::SceneArea;
 use std::hash::{Hash, Hasher};
 
@@ -71,22 +73,6 @@ impl TileId {
     }
 }
 
-/// How the bytes are encoded. Only the plain encoding exists so far (f32 attributes, u16/u32
-/// indices); compact encodings are further variants.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
-pub enum Encoding {
-    #[default]
-    Plain,
-}
-
-impl Encoding {
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Encoding::Plain => "plain",
-        }
-    }
-}
-
 /// Where roof shapes come from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub enum RoofSource {
@@ -131,6 +117,11 @@ impl TileKey {
             root: Region(root),
             tile,
         })
+    }
+
+    /// The same tile in `encoding`.
+    pub fn with_encoding(self, encoding: Encoding) -> Self {
+        Self { encoding, ..self }
     }
 
     /// The same tile with roofs from `roofs`.

@@ -7,6 +7,7 @@ use crate::source::AreaBuildings;
 use crate::state::AppState;
 use bytes::Bytes;
 use citymesh_core::building::set::BuildingSet;
+use citymesh_core::mesh::Encoding;
 use citymesh_core::scene::{RoofChoice, SceneArea, SceneRequest};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -41,14 +42,20 @@ pub enum Buildings {
 /// a generation slot (503 when none frees up in time) and generates on the blocking pool. The
 /// whole takes at most `--request-timeout-s` (503 after that). 3D Tiles content that holds no
 /// building group is not generated: 404 `no_content`.
-/// `roofs` gives shapes to buildings without a `roof:shape` tag (classified roofs).
+/// `roofs` gives shapes to buildings without a `roof:shape` tag (classified roofs); `encoding` is
+/// how the GLB stores vertices.
 pub async fn generate(
     state: &AppState,
     area: SceneArea,
     buildings: Buildings,
     roofs: Option<Arc<RoofChoice>>,
+    encoding: Encoding,
 ) -> Result<Generated, AppError> {
-    within_timeout(state, generate_within(state, area, buildings, roofs)).await
+    within_timeout(
+        state,
+        generate_within(state, area, buildings, roofs, encoding),
+    )
+    .await
 }
 
 async fn generate_within(
@@ -56,6 +63,7 @@ async fn generate_within(
     area: SceneArea,
     buildings: Buildings,
     roofs: Option<Arc<RoofChoice>>,
+    encoding: Encoding,
 ) -> Result<Generated, AppError> {
     let bbox = area
         .bbox()
@@ -77,7 +85,8 @@ async fn generate_within(
         let started = Instant::now();
         let mut request: SceneRequest<'_> = area
             .request(&buildings.set)
-            .map_err(|e| AppError::bad_request("invalid_tile", e.to_string()))?;
+            .map_err(|e| AppError::bad_request("invalid_tile", e.to_string()))?
+            .with_encoding(encoding);
         if let Some(roofs) = &roofs {
             request = request.with_roofs(roofs);
         }

@@ -12,6 +12,8 @@ pub const GLB: &str = "model/gltf-binary";
 pub fn glb_headers(stats: Option<&GenerationStats>) -> HeaderMap {
     let mut h = HeaderMap::new();
     h.insert(header::CONTENT_TYPE, HeaderValue::from_static(GLB));
+    // `Accept: model/gltf-binary; encoding=...` can choose the bytes.
+    h.insert(header::VARY, HeaderValue::from_static("accept"));
     let Some(s) = stats else { return h };
     let mut put = |name: &'static str, value: String| {
         if let Ok(v) = HeaderValue::from_str(&value) {

@@ -3,9 +3,68 @@
 use crate::error::AppError;
 use crate::pipeline::RoofsParam;
 use crate::state::Limits;
+use axum::http::{HeaderMap, header};
 use citymesh_core::geo::GeoBbox;
+use citymesh_core::mesh::Encoding;
 use serde::Deserialize;
 use utoipa::IntoParams;
+
+/// How a GLB stores its vertices, as asked with `?encoding=`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize, utoipa::ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum EncodingParam {
+    /// Core glTF, no extension: f32 positions, every glTF reader loads it.
+    Plain,
+    /// `KHR_mesh_quantization`: u16 positions in a box over the content, i8 normals.
+    Quantized,
+    /// Quantized and compressed with `EXT_meshopt_compression` (clients need a meshopt
+    /// decoder; CesiumJS has one built in, three.js's `MeshoptDecoder` is one line).
+    Meshopt,
+}
+
+impl From<EncodingParam> for Encoding {
+    fn from(e: EncodingParam) -> Self {
+        match e {
+            EncodingParam::Plain => Encoding::Plain,
+            EncodingParam::Quantized => Encoding::Quantized,
+            EncodingParam::Meshopt => Encoding::Meshopt,
+        }
+    }
+}
+
+impl From<Encoding> for EncodingParam {
+    fn from(e: Encoding) -> Self {
+        match e {
+            Encoding::Plain => EncodingParam::Plain,
+            Encoding::Quantized => EncodingParam::Quantized,
+            Encoding::Meshopt => EncodingParam::Meshopt,
+        }
+    }
+}
+
+/// The encoding of a response: `?encoding=` if given, else an `encoding` parameter of a
+/// `model/gltf-binary` type in `Accept` (`Accept: model/gltf-binary; encoding=meshopt`), else
+/// `default`. An unknown name in `Accept` is ignored (a hint, not a demand).
+pub fn encoding_for(
+    asked: Option<EncodingParam>,
+    headers: &HeaderMap,
+    default: Encoding,
+) -> Encoding {
+    if let Some(e) = asked {
+        return e.into();
+    }
+    headers
+        .get_all(header::ACCEPT)
+        .iter()
+        .filter_map(|v| v.to_str().ok())
+        .flat_map(|v| v.split(','))
+        .filter(|range| range.trim_start().starts_with("model/gltf-binary"))
+        .flat_map(|range| range.split(';').skip(1))
+        .filter_map(|p| p.split_once('='))
+        .find(|(k, _)| k.trim().eq_ignore_ascii_case("encoding"))
+        .and_then(|(_, v)| v.trim().trim_matches('"').parse().ok())
+        .unwrap_or(default)
+}
 
 /// The area of a scene.
 #[derive(Debug, Deserialize, IntoParams)]
@@ -25,31 +84,47 @@ pub struct BboxQuery {
     /// classifier's predictions; see `POST /classify`).
     #[param(inline)]
     pub roofs: Option<RoofsParam>,
+    /// How the GLB stores vertices: `plain` (the default: f32, no extension), `quantized`
+    /// (`KHR_mesh_quantization`) or `meshopt` (also `EXT_meshopt_compression`, the smallest).
+    /// Without it, an `encoding` parameter in `Accept: model/gltf-binary; encoding=...` is used.
+    #[param(inline)]
+    pub encoding: Option<EncodingParam>,
 }
 
-/// Where roof shapes come from.
+/// Where roof shapes come from, and how the GLB is encoded.
 #[derive(Debug, Deserialize, IntoParams)]
 #[into_params(parameter_in = Query)]
-pub struct RoofsQuery {
+pub struct TileQuery {
     /// `osm` (tags, else flat; the default, the paper's scene without computer vision) or
     /// `classified` (tags, and for untagged buildings the roof classifier's predictions: the
     /// response's `X-Citymesh-Roofs` says how many are still pending; see `POST /classify`).
     #[param(inline)]
     pub roofs: Option<RoofsParam>,
+    /// How the GLB stores vertices: `plain` (f32, no extension), `quantized`
+    /// (`KHR_mesh_quantization`) or `meshopt` (also `EXT_meshopt_compression`, the smallest).
+    /// The default is `plain` for XYZ tiles and `meshopt` for 3D Tiles content; without the
+    /// parameter, an `encoding` parameter in `Accept: model/gltf-binary; encoding=...` is used.
+    #[param(inline)]
+    pub encoding: Option<EncodingParam>,
 }
 
-/// The `roofs` of a query string (most tile requests have none: nothing to parse then).
-pub fn roofs_of(query: Option<&str>) -> Result<RoofsParam, AppError> {
+/// The `roofs` and `encoding` of a query string (most tile requests have none: nothing to parse
+/// then).
+pub fn tile_query_of(query: Option<&str>) -> Result<TileQuery, AppError> {
     match query {
-        None | Some("") => Ok(RoofsParam::default()),
-        Some(q) => serde_urlencoded::from_str::<RoofsQuery>(q)
-            .map(|r| r.roofs.unwrap_or_default())
-            .map_err(|e| {
-                AppError::bad_request(
-                    "invalid_query",
-                    format!("{e}: roofs is `osm` (the default) or `classified`"),
-                )
-            }),
+        None | Some("") => Ok(TileQuery {
+            roofs: None,
+            encoding: None,
+        }),
+        Some(q) => serde_urlencoded::from_str::<TileQuery>(q).map_err(|e| {
+            AppError::bad_request(
+                "invalid_query",
+                format!(
+                    "{e}: roofs is `osm` (the default) or `classified`; encoding is `plain`, \
+                     `quantized` or `meshopt`"
+                ),
+            )
+        }),
     }
 }
 

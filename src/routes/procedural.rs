@@ -16,6 +16,7 @@ use bytes::Bytes;
 use citymesh_core::building::roof::RoofShape;
 use citymesh_core::building::set::BuildingSet;
 use citymesh_core::geojson::write_geojson;
+use citymesh_core::mesh::Encoding;
 use citymesh_core::procedural::{LayoutType, ProceduralCity, ProceduralParams, generate_city};
 use citymesh_core::scene::SceneArea;
 use serde::Deserialize;
@@ -193,7 +194,14 @@ pub async fn procedural_glb(
     let city = city(&state, query).await?;
     let bbox = city.bbox;
     let set = run_blocking(&state, move || Ok(Arc::new(BuildingSet::new(city.records)))).await?;
-    let generated = generate(&state, SceneArea::Given(bbox), Buildings::Given(set), None).await?;
+    let generated = generate(
+        &state,
+        SceneArea::Given(bbox),
+        Buildings::Given(set),
+        None,
+        Encoding::Plain,
+    )
+    .await?;
     Ok(generated_response(
         &request_headers,
         generated,

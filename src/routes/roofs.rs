@@ -8,6 +8,7 @@ use crate::pipeline::{Buildings, Generated, RoofFigures, RoofsParam, classified_
 use crate::state::AppState;
 use axum::http::{HeaderMap, HeaderName, HeaderValue};
 use axum::response::Response;
+use citymesh_core::mesh::Encoding;
 use citymesh_core::scene::SceneArea;
 
 /// The header saying how complete classified roofs are.
@@ -27,7 +28,8 @@ pub async fn cached_tile(
             let (cached, level) = state
                 .tiles
                 .get_or_generate(key, || async {
-                    let g = generate(state, area, Buildings::FromSource, None).await?;
+                    let g =
+                        generate(state, area, Buildings::FromSource, None, key.encoding).await?;
                     Ok::<_, AppError>((g.glb, g.stats))
                 })
                 .await?;
@@ -50,6 +52,7 @@ pub async fn cached_tile(
                         area,
                         Buildings::Loaded(plan.buildings),
                         Some(plan.choice),
+                        key.encoding,
                     )
                     .await?;
                     Ok::<_, AppError>((g.glb, g.stats))
@@ -67,10 +70,11 @@ pub async fn generate_with_roofs(
     state: &AppState,
     area: SceneArea,
     roofs: RoofsParam,
+    encoding: Encoding,
 ) -> Result<(Generated, Option<RoofFigures>), AppError> {
     match roofs {
         RoofsParam::Osm => Ok((
-            generate(state, area, Buildings::FromSource, None).await?,
+            generate(state, area, Buildings::FromSource, None, encoding).await?,
             None,
         )),
         RoofsParam::Classified => {
@@ -80,6 +84,7 @@ pub async fn generate_with_roofs(
                 area,
                 Buildings::Loaded(plan.buildings),
                 Some(plan.choice),
+                encoding,
             )
             .await?;
             Ok((generated, Some(plan.figures)))

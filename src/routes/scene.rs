@@ -1,7 +1,7 @@
 //! `GET /scene?bbox=` and `GET /scene.glb?bbox=`: the mesh of an area (or, from `/scene`, its
 //! statistics as JSON).
 
-use super::params::{BboxQuery, parse_bbox};
+use super::params::{BboxQuery, EncodingParam, encoding_for, parse_bbox};
 use super::roofs::{generate_with_roofs, scene_response};
 use super::scene_stats::SceneStats;
 use super::schemas::GlbBytes;
@@ -13,6 +13,7 @@ use axum::extract::rejection::QueryRejection;
 use axum::extract::{Query, State};
 use axum::http::{HeaderMap, header};
 use axum::response::{IntoResponse, Response};
+use citymesh_core::mesh::Encoding;
 use citymesh_core::scene::SceneArea;
 use serde::Deserialize;
 use utoipa::{IntoParams, ToSchema};
@@ -49,6 +50,10 @@ pub struct SceneQuery {
     /// Where roof shapes come from: `osm` (the default) or `classified`.
     #[param(inline)]
     pub roofs: Option<RoofsParam>,
+    /// How the GLB stores vertices: `plain` (the default), `quantized` or `meshopt`; see
+    /// `/scene.glb`.
+    #[param(inline)]
+    pub encoding: Option<EncodingParam>,
 }
 
 /// The mesh of a bounding box (binary glTF), or its statistics (JSON).
@@ -75,7 +80,8 @@ pub async fn scene(
 ) -> Result<Response, AppError> {
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
     let format = query.format.unwrap_or_else(|| negotiate(&request_headers));
-    let generated = generate_box(&state, query.bbox.as_deref(), query.roofs).await?;
+    let encoding = encoding_for(query.encoding, &request_headers, Encoding::Plain);
+    let generated = generate_box(&state, query.bbox.as_deref(), query.roofs, encoding).await?;
     Ok(match format {
         SceneFormat::Glb => scene_response(&request_headers, generated, SCENE_CACHE_CONTROL),
         SceneFormat::Json => Json(SceneStats::of(&generated.0, generated.1)).into_response(),
@@ -103,9 +109,16 @@ async fn generate_box(
     state: &AppState,
     bbox: Option<&str>,
     roofs: Option<RoofsParam>,
+    encoding: Encoding,
 ) -> Result<(Generated, Option<RoofFigures>), AppError> {
     let bbox = parse_bbox(bbox, &state.limits)?;
-    generate_with_roofs(state, SceneArea::Bbox(bbox), roofs.unwrap_or_default()).await
+    generate_with_roofs(
+        state,
+        SceneArea::Bbox(bbox),
+        roofs.unwrap_or_default(),
+        encoding,
+    )
+    .await
 }
 
 /// The mesh of a bounding box as binary glTF: the ground and the buildings of the server's OSM
@@ -146,7 +159,8 @@ pub async fn scene_glb(
     query: Result<Query<BboxQuery>, QueryRejection>,
 ) -> Result<Response, AppError> {
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
-    let generated = generate_box(&state, query.bbox.as_deref(), query.roofs).await?;
+    let encoding = encoding_for(query.encoding, &request_headers, Encoding::Plain);
+    let generated = generate_box(&state, query.bbox.as_deref(), query.roofs, encoding).await?;
     Ok(scene_response(
         &request_headers,
         generated,

@@ -8,6 +8,7 @@ use crate::state::AppState;
 use axum::Json;
 use axum::extract::rejection::QueryRejection;
 use axum::extract::{Query, State};
+use citymesh_core::mesh::Encoding;
 use citymesh_core::scene::SceneArea;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -134,10 +135,11 @@ pub async fn scene_stats(
     let bbox = parse_bbox(query.bbox.as_deref(), &state.limits)?;
     let area = SceneArea::Bbox(bbox);
     let roofs = query.roofs.unwrap_or_default();
-    let (generated, figures) = generate_with_roofs(&state, area, roofs).await?;
+    let (generated, figures) = generate_with_roofs(&state, area, roofs, Encoding::Plain).await?;
     let mut stats = SceneStats::of(&generated, figures);
     if roofs == RoofsParam::Classified {
-        let (plain, _) = generate_with_roofs(&state, area, RoofsParam::Osm).await?;
+        let (plain, _) =
+            generate_with_roofs(&state, area, RoofsParam::Osm, Encoding::Plain).await?;
         stats.without_classifier = Some(PaperFigures::of(&plain));
         stats.imagery_attribution = Some(state.roofs.imagery_attribution.clone());
     }

@@ -14,6 +14,7 @@ use axum::response::Response;
 use citymesh_core::building::set::BuildingSet;
 use citymesh_core::geo::GeoBbox;
 use citymesh_core::geojson::{GeoJsonErrorKind, read_geojson};
+use citymesh_core::mesh::Encoding;
 use citymesh_core::scene::SceneArea;
 use std::sync::Arc;
 
@@ -133,7 +134,14 @@ pub async fn post_scene(
         Ok(Arc::new(BuildingSet::new(scene.records)))
     })
     .await?;
-    let generated = generate(&state, SceneArea::Given(bbox), Buildings::Given(set), None).await?;
+    let generated = generate(
+        &state,
+        SceneArea::Given(bbox),
+        Buildings::Given(set),
+        None,
+        Encoding::Plain,
+    )
+    .await?;
     Ok(generated_response(&request_headers, generated, "no-store"))
 }
 

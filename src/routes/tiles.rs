@@ -1,7 +1,7 @@
 //! `GET /tiles/{z}/{x}/{y}.glb`: Web Mercator XYZ tiles, through the tile cache.
 
 use super::conditional::cached_response;
-use super::params::{RoofsQuery, roofs_of};
+use super::params::{TileQuery, encoding_for, tile_query_of};
 use super::roofs::cached_tile;
 use super::schemas::GlbBytes;
 use crate::cache::TileKey;
@@ -13,6 +13,7 @@ use axum::extract::{Path, RawQuery, State};
 use axum::http::HeaderMap;
 use axum::response::Response;
 use citymesh_core::geo::TileCoord;
+use citymesh_core::mesh::Encoding;
 
 /// One XYZ tile as binary glTF.
 ///
@@ -27,7 +28,7 @@ use citymesh_core::geo::TileCoord;
         ("z" = u8, Path, description = "Zoom level (the server serves 12 to 20 by default)", minimum = 0, maximum = 30, example = 16),
         ("x" = u32, Path, description = "Column, 0 at 180° W; below 2^z", minimum = 0, example = 34297),
         ("y" = u32, Path, description = "Row, 0 at 85.0511° N; below 2^z", minimum = 0, example = 22502),
-        RoofsQuery,
+        TileQuery,
     ),
     responses(
         (status = 200, description = "The tile", content_type = "model/gltf-binary", body = inline(GlbBytes),
@@ -63,14 +64,23 @@ pub async fn tile_glb(
             ),
         ));
     }
-    let key = TileKey::xyz(tile);
-    match roofs_of(query.as_deref())? {
+    let asked = tile_query_of(query.as_deref())?;
+    let encoding = encoding_for(asked.encoding, &request_headers, Encoding::Plain);
+    let key = TileKey::xyz(tile).with_encoding(encoding);
+    match asked.roofs.unwrap_or_default() {
         // The common case stays as lean as a plain cached tile.
         RoofsParam::Osm => {
             let (cached, level) = state
                 .tiles
                 .get_or_generate(key, || async {
-                    let g = generate(&state, key.tile.area(), Buildings::FromSource, None).await?;
+                    let g = generate(
+                        &state,
+                        key.tile.area(),
+                        Buildings::FromSource,
+                        None,
+                        encoding,
+                    )
+                    .await?;
                     Ok::<_, AppError>((g.glb, g.stats))
                 })
                 .await?;

@@ -2,7 +2,7 @@
 //! `?bbox=`), and the binary subtrees and ECEF glb content its implicit quadtree names; content
 //! goes through the same tile cache as XYZ tiles.
 
-use super::params::{RoofsQuery, parse_bbox};
+use super::params::{EncodingParam, TileQuery, encoding_for, parse_bbox};
 use super::roofs::cached_tile;
 use super::schemas::{GlbBytes, SubtreeBytes};
 use crate::cache::TileKey;
@@ -15,6 +15,7 @@ use axum::extract::{Path, Query, State};
 use axum::http::{HeaderMap, header};
 use axum::response::{IntoResponse, Response};
 use citymesh_core::geo::{GeoBbox, ImplicitTile};
+use citymesh_core::mesh::Encoding;
 use citymesh_core::tiles3d::{ImplicitLayout, tileset_json};
 use serde::Deserialize;
 use utoipa::IntoParams;
@@ -30,7 +31,30 @@ pub struct TilesetQuery {
     /// to every content tile's URI).
     #[param(inline)]
     pub roofs: Option<RoofsParam>,
+    /// How content tiles store vertices: `meshopt` (the default: quantized and compressed, which
+    /// CesiumJS and 3d-tiles-renderer decode), `quantized` or `plain` (passed on to every content
+    /// tile's URI).
+    #[param(inline)]
+    pub encoding: Option<EncodingParam>,
 }
+
+/// The query a content URI carries: what the tileset was asked for beyond the defaults.
+fn content_query(query: &TilesetQuery) -> String {
+    let mut parts = Vec::new();
+    if query.roofs == Some(RoofsParam::Classified) {
+        parts.push("roofs=classified".to_owned());
+    }
+    if let Some(e) = query.encoding
+        && Encoding::from(e) != CONTENT_ENCODING
+    {
+        parts.push(format!("encoding={}", Encoding::from(e)));
+    }
+    parts.join("&")
+}
+
+/// Content tiles are meshopt unless asked otherwise: the smallest, and every 3D Tiles client
+/// citymesh serves decodes it.
+const CONTENT_ENCODING: Encoding = Encoding::Meshopt;
 
 /// The tree's root: the `bbox` given, else the extent of the served buildings.
 fn root_for(state: &AppState, text: Option<&str>) -> Result<GeoBbox, AppError> {
@@ -109,10 +133,11 @@ pub async fn tileset(
     let root = root_for(&state, query.bbox.as_deref())?;
     let layout = pipeline::tileset_layout(&state, root).await?;
     let mut json = tileset_json(&layout, &format!("area/{root}/"));
-    if query.roofs == Some(RoofsParam::Classified)
+    let extra = content_query(&query);
+    if !extra.is_empty()
         && let Some(uri) = json.pointer_mut("/root/content/uri")
     {
-        *uri = format!("{}?roofs=classified", uri.as_str().unwrap_or_default()).into();
+        *uri = format!("{}?{extra}", uri.as_str().unwrap_or_default()).into();
     }
     Ok(([(header::CACHE_CONTROL, "public, max-age=300")], Json(json)).into_response())
 }
@@ -161,7 +186,7 @@ pub async fn subtree(
            ("level" = u8, Path, description = "Level (content sits at the deepest level only)", minimum = 0, maximum = 30),
            ("x" = u32, Path, description = "Column at that level, from the west", minimum = 0),
            ("y" = u32, Path, description = "Row at that level, from the south", minimum = 0),
-           RoofsQuery),
+           TileQuery),
     responses(
         (status = 200, description = "The content", content_type = "model/gltf-binary", body = inline(GlbBytes),
             headers(
@@ -182,7 +207,7 @@ pub async fn content(
     State(state): State<AppState>,
     request_headers: HeaderMap,
     path: Result<Path<(String, String, String, String)>, PathRejection>,
-    query: Result<Query<RoofsQuery>, QueryRejection>,
+    query: Result<Query<TileQuery>, QueryRejection>,
 ) -> Result<Response, AppError> {
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
     let (root, tile) = implicit_request(&state, path, ".glb")?;
@@ -193,10 +218,11 @@ pub async fn content(
         ));
     }
     // Errors (a tile without content among them) are never cached.
+    let encoding = encoding_for(query.encoding, &request_headers, CONTENT_ENCODING);
     cached_tile(
         &state,
         &request_headers,
-        TileKey::implicit(root, tile),
+        TileKey::implicit(root, tile).with_encoding(encoding),
         query.roofs.unwrap_or_default(),
         "public, max-age=3600",
     )

@@ -83,6 +83,8 @@ async function check(name, fn) {
 async function open(url, ready, timeout = 120000) {
   const page = await browser.newPage({ viewport: { width: 1000, height: 700 } });
   const problems = [];
+  const glbs = [];
+  page.on('response', (r) => { if (/\.glb(\?|$)/.test(r.url())) glbs.push(r.url()); });
   page.on('pageerror', (e) => problems.push(`page error: ${e.message}`));
   page.on('requestfailed', (r) => problems.push(`request failed: ${r.url()} ${r.failure()?.errorText}`));
   page.on('response', (r) => { if (r.status() >= 400) problems.push(`HTTP ${r.status()}: ${r.url()}`); });
@@ -90,7 +92,7 @@ async function open(url, ready, timeout = 120000) {
   await page.goto(url);
   await page.waitForFunction(ready, null, { timeout, polling: 250 });
   await page.waitForTimeout(500);
-  return { page, problems };
+  return { page, problems, glbs };
 }
 
 const servers = [];
@@ -101,14 +103,27 @@ try {
   servers.push(karlsruhe.child, demo.child);
   imagery = await startImagery();
 
-  for (const [name, server] of [['karlsruhe', karlsruhe], ['demo city', demo]]) {
+  /** Throws unless every GLB the page fetched was asked in `encoding` (`null`: the default). */
+  const assertEncoding = (glbs, encoding) => {
+    const wrong = glbs.filter((u) => new URL(u).searchParams.get('encoding') !== encoding);
+    if (!glbs.length || wrong.length) throw new Error(`GLBs not in encoding ${encoding}: ${wrong.slice(0, 3).join(', ') || 'none fetched'}`);
+  };
+  // Each page with each encoding on Karlsruhe; the defaults on the demo city.
+  const runs = [['karlsruhe', karlsruhe, 'plain'], ['karlsruhe', karlsruhe, 'quantized'], ['karlsruhe', karlsruhe, 'meshopt'],
+    ['demo city', demo, null]];
+  for (const [city, server, encoding] of runs) {
+    const name = encoding ? `${city} (${encoding})` : city;
+    const suffix = encoding ? `?encoding=${encoding}` : '';
+    const file = (page) => `${artifacts}/${page}-${city.replace(' ', '-')}${encoding ? '-' + encoding : ''}.png`;
     await check(`viewer shows the buildings of ${name}`, async () => {
-      const full = await open(`${server.url}/`, 'window.citymeshViewer && window.citymeshViewer.ready');
+      const full = await open(`${server.url}/${suffix}`, 'window.citymeshViewer && window.citymeshViewer.ready');
       const s = await full.page.evaluate(() => window.citymeshViewer);
       if (s.tilesLoaded !== s.tilesWanted || s.tilesFailed) throw new Error(`tiles: ${JSON.stringify(s)}`);
-      const shot = await full.page.screenshot({ path: `${artifacts}/viewer-${name.replace(' ', '-')}.png` });
+      // The viewer asks for meshopt by default.
+      assertEncoding(full.glbs, encoding ?? 'meshopt');
+      const shot = await full.page.screenshot({ path: file('viewer') });
       const empty = await open(`${server.url}/?empty`, 'window.citymeshViewer && window.citymeshViewer.ready');
-      const blank = await empty.page.screenshot({ path: `${artifacts}/viewer-${name.replace(' ', '-')}-empty.png` });
+      const blank = await empty.page.screenshot({ path: file('viewer-empty') });
       const diff = difference(shot, blank);
       if (full.problems.length || empty.problems.length) throw new Error([...full.problems, ...empty.problems].join('\n'));
       if (!(diff > 20)) throw new Error(`the city barely differs from an empty scene: ${diff.toFixed(1)}`);
@@ -117,9 +132,11 @@ try {
     });
 
     await check(`CesiumJS loads the 3D Tiles of ${name}`, async () => {
-      const c = await open(`${server.url}/cesium`, 'window.citymeshCesium && (window.citymeshCesium.ready || window.citymeshCesium.errors.length)', 180000);
+      const c = await open(`${server.url}/cesium${suffix}`, 'window.citymeshCesium && (window.citymeshCesium.ready || window.citymeshCesium.errors.length)', 180000);
       const s = await c.page.evaluate(() => window.citymeshCesium);
-      const shot = await c.page.screenshot({ path: `${artifacts}/cesium-${name.replace(' ', '-')}.png` });
+      const shot = await c.page.screenshot({ path: file('cesium') });
+      // Content is meshopt unless asked otherwise: only other encodings appear in its URIs.
+      assertEncoding(c.glbs, encoding === 'meshopt' ? null : encoding);
       if (s.errors.length) throw new Error(s.errors.join('\n'));
       if (c.problems.length) throw new Error(c.problems.join('\n'));
       if (!(s.tilesLoaded > 0)) throw new Error('no tile loaded');
@@ -133,9 +150,10 @@ try {
     });
 
     await check(`3d-tiles-renderer loads the 3D Tiles of ${name} with ImplicitTilingPlugin`, async () => {
-      const t = await open(`${server.url}/3dtiles-renderer`, 'window.citymeshTilesRenderer && (window.citymeshTilesRenderer.ready || window.citymeshTilesRenderer.errors.length)');
+      const t = await open(`${server.url}/3dtiles-renderer${suffix}`, 'window.citymeshTilesRenderer && (window.citymeshTilesRenderer.ready || window.citymeshTilesRenderer.errors.length)');
       const s = await t.page.evaluate(() => window.citymeshTilesRenderer);
-      await t.page.screenshot({ path: `${artifacts}/3dtiles-renderer-${name.replace(' ', '-')}.png` });
+      await t.page.screenshot({ path: file('3dtiles-renderer') });
+      assertEncoding(t.glbs, encoding === 'meshopt' ? null : encoding);
       if (s.errors.length) throw new Error(s.errors.join('\n'));
       if (t.problems.length) throw new Error(t.problems.join('\n'));
       if (!(s.modelsLoaded > 0)) throw new Error('no model loaded');

@@ -2,6 +2,7 @@
 //! through the router, and the Khronos glTF Validator.
 #![allow(dead_code)]
 
+pub mod decode;
 pub mod imagery;
 
 use axum::body::Body;

@@ -6,6 +6,7 @@
 
 use citymesh_core::building::clusters;
 use citymesh_core::building::set::BuildingSet;
+use citymesh_core::mesh::{Encoding, Placement};
 use citymesh_core::osm::read_buildings;
 use citymesh_core::scene::{Border, Scene};
 use citymesh_core::terrain::{ElevationModel, HgtTile};
@@ -13,6 +14,11 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
 use std::path::PathBuf;
 use std::sync::Arc;
+
+// The allocator the server runs with (src/main.rs): without it, glibc returns the scene's buffers
+// to the kernel after each scene and faults them back in the next one.
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 fn read(name: &str) -> Vec<u8> {
     let dir = std::env::var_os("CITYMESH_DATA_DIR").map_or_else(
@@ -34,14 +40,24 @@ fn kirchfeld(c: &mut Criterion) {
     let bbox = set.extent().unwrap();
 
     let scene = Scene::new(&model, &bbox, &groups, Border::Whole);
-    let glb = scene.to_glb();
     eprintln!(
-        "kirchfeld scene: {} buildings generated, {} vertices, {} triangles (mesh); GLB {} bytes",
+        "kirchfeld scene: {} buildings generated, {} vertices, {} triangles (mesh)",
         scene.buildings.generated,
         scene.mesh.positions.len(),
         scene.mesh.triangles.len(),
-        glb.len()
     );
+    for encoding in Encoding::ALL {
+        for placement in [Placement::LocalEnu, Placement::Ecef] {
+            let glb = scene.encode(placement, encoding);
+            eprintln!(
+                "  {encoding} {placement:?}: {} bytes, {} B per building, {} vertices, {} triangles",
+                glb.bytes.len(),
+                glb.bytes.len() / scene.buildings.generated,
+                glb.vertices,
+                glb.triangles
+            );
+        }
+    }
 
     let build = || {
         Scene::new(
@@ -53,6 +69,11 @@ fn kirchfeld(c: &mut Criterion) {
     };
     c.bench_function("kirchfeld_scene_to_glb", |b| b.iter(|| build().to_glb()));
     c.bench_function("kirchfeld_scene_mesh_only", |b| b.iter(build));
+    for encoding in Encoding::ALL {
+        c.bench_function(&format!("kirchfeld_encode_{encoding}"), |b| {
+            b.iter(|| scene.encode(Placement::LocalEnu, black_box(encoding)).bytes);
+        });
+    }
     c.bench_function("kirchfeld_pbf_parse_and_cluster", |b| {
         b.iter(|| {
             let osm = read_buildings(black_box(&pbf)).unwrap();

@@ -3,6 +3,7 @@
 import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
+import { MeshoptDecoder } from 'three/addons/libs/meshopt_decoder.module.js';
 
 const state = window.citymeshViewer = { tilesLoaded: 0, tilesFailed: 0, tilesWanted: 0, ready: false, errors: [] };
 const d = window.CITYMESH_DEFAULTS;
@@ -14,8 +15,12 @@ const radius = parseInt(q.get('radius') ?? '1', 10);
 const empty = q.has('empty');
 // `?roofs=classified`: roofs from the roof classifier's predictions where OSM has no roof:shape.
 const roofs = q.get('roofs') === 'classified' ? 'classified' : 'osm';
-const roofsQuery = roofs === 'classified' ? '?roofs=classified' : '';
+// `?encoding=plain|quantized|meshopt`: how the tiles store vertices (meshopt, the smallest, by
+// default; three.js decodes it with its MeshoptDecoder).
+const encoding = ['plain', 'quantized', 'meshopt'].includes(q.get('encoding')) ? q.get('encoding') : 'meshopt';
+const tileQuery = '?' + new URLSearchParams(roofs === 'classified' ? { roofs, encoding } : { encoding });
 state.roofs = roofs;
+state.encoding = encoding;
 document.getElementById('where').textContent = `${lon0.toFixed(5)} E, ${lat0.toFixed(5)} N, tiles of zoom ${zoom}`;
 
 // Metres per degree at the view's latitude (WGS84), as citymesh's local frames use.
@@ -44,7 +49,7 @@ const n = 2 ** zoom;
 const tx = Math.floor((lon0 + 180) / 360 * n);
 const latR = lat0 * Math.PI / 180;
 const ty = Math.floor((1 - Math.log(Math.tan(latR) + 1 / Math.cos(latR)) / Math.PI) / 2 * n);
-const loader = new GLTFLoader();
+const loader = new GLTFLoader().setMeshoptDecoder(MeshoptDecoder);
 let baseHeight = null;
 const group = new THREE.Group();
 scene.add(group);
@@ -55,7 +60,7 @@ if (!empty) {
   for (let dx = -radius; dx <= radius; dx++) {
     for (let dy = -radius; dy <= radius; dy++) {
       state.tilesWanted++;
-      loader.load(`/tiles/${zoom}/${tx + dx}/${ty + dy}.glb${roofsQuery}`, (gltf) => {
+      loader.load(`/tiles/${zoom}/${tx + dx}/${ty + dy}.glb${tileQuery}`, (gltf) => {
         const o = gltf.scene.userData.origin;
         gltf.scene.position.set((o.lon - lon0) * mLon, o.height, -(o.lat - lat0) * mLat);
         group.add(gltf.scene);

@@ -1,6 +1,7 @@
 //! The alternative coordinate system of a footprint (docs/method.md section 4): two axis directions
 //! from grouped wall directions, and the virtual rectangle they span.
 
+use super::length::planar_length;
 /// The virtual rectangle of a footprint: `x' = (n.p - x0) / rx`, `y' = (m.p - y0) / ry`, with
 /// `rx >= ry`, so the footprint lies in [-1, 1]².
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -36,7 +37,7 @@ impl RoofAxes {
         for i in 0..outer.len() {
             let (p, q) = (outer[i], outer[(i + 1) % outer.len()]);
             let d = [q[0] - p[0], q[1] - p[1]];
-            let len = d[0].hypot(d[1]);
+            let len = planar_length(d[0], d[1]);
             if len < 1e-9 {
                 continue;
             }
@@ -117,7 +118,7 @@ impl RoofAxes {
         for i in 0..outer.len() {
             let (p, q) = (outer[i], outer[(i + 1) % outer.len()]);
             let d = [q[0] - p[0], q[1] - p[1]];
-            let len = d[0].hypot(d[1]);
+            let len = planar_length(d[0], d[1]);
             if len < 1e-9 {
                 continue;
             }

@@ -6,6 +6,7 @@
 //! A point on an edge is stored as its parameter `sigma` from the edge's *canonical* start, the
 //! end with the smaller [`NodeKey`], and its coordinates are always computed from that end. Two
 //! buildings sharing the edge therefore compute the very same points.
+use super::length::planar_length;
 
 use super::footprint::{Footprint, FootprintRing, MERGE_DISTANCE, NodeKey};
 
@@ -86,7 +87,7 @@ pub fn insert_split_within(list: &mut Vec<f64>, sigma: f64, edge_length: f64, di
 #[inline]
 pub fn edge_length(ring: &FootprintRing, edge: usize) -> f64 {
     let (a, b) = (ring.points[edge], ring.points[(edge + 1) % ring.len()]);
-    (b[0] - a[0]).hypot(b[1] - a[1])
+    planar_length(b[0] - a[0], b[1] - a[1])
 }
 
 /// Cuts dividing segments (metres) to a footprint.
@@ -98,7 +99,7 @@ pub fn divide(footprint: &Footprint, segments: &[[[f64; 2]; 2]]) -> Divisions {
     };
     for &[d0, d1] in segments {
         let dd = [d1[0] - d0[0], d1[1] - d0[1]];
-        let len_d = dd[0].hypot(dd[1]);
+        let len_d = planar_length(dd[0], dd[1]);
         if len_d <= MERGE_DISTANCE {
             continue;
         }
@@ -108,7 +109,7 @@ pub fn divide(footprint: &Footprint, segments: &[[[f64; 2]; 2]]) -> Divisions {
                 let (s, t) = canonical(ring, e);
                 let (c0, c1) = (ring.points[s], ring.points[t]);
                 let de = [c1[0] - c0[0], c1[1] - c0[1]];
-                let len_e = de[0].hypot(de[1]);
+                let len_e = planar_length(de[0], de[1]);
                 let denom = cross(dd, de);
                 if denom.abs() <= 1e-12 * len_d * len_e {
                     continue;

@@ -4,6 +4,7 @@
 //!
 //! Every point keeps a [`NodeKey`], so two buildings that share OSM nodes can find the walls they
 //! share (docs/method.md section 7).
+use super::length::planar_length;
 
 use super::sweep::{any_overlapping_pair, segment_bounds};
 
@@ -317,7 +318,7 @@ pub fn segment_distance(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
     } else {
         0.0
     };
-    (p[0] - a[0] - t * d[0]).hypot(p[1] - a[1] - t * d[1])
+    planar_length(p[0] - a[0] - t * d[0], p[1] - a[1] - t * d[1])
 }
 
 /// Orientation of `c` relative to the line `a`-`b`: positive to the left.
@@ -351,7 +352,8 @@ fn segments_touch(
         // p-q and q-r: overlapping means r lies back along q-p.
         let turn = orient(p, q, r);
         let back = (p[0] - q[0]) * (r[0] - q[0]) + (p[1] - q[1]) * (r[1] - q[1]);
-        let len = ((p[0] - q[0]).hypot(p[1] - q[1])) * ((r[0] - q[0]).hypot(r[1] - q[1]));
+        let len =
+            (planar_length(p[0] - q[0], p[1] - q[1])) * (planar_length(r[0] - q[0], r[1] - q[1]));
         return turn.abs() <= 1e-12 * len && back > 0.0;
     }
     let d1 = orient(c, d, a);

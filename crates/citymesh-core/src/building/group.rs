@@ -17,7 +17,7 @@ use super::roof_surface::RoofSurface;
 use super::triangulate::triangulate;
 use super::walls::{SAME_HEIGHT, WallEnd, push_wall_piece};
 use crate::mesh::{FaceStyle, Material, Mesh, Rgb};
-use std::collections::HashMap;
+use foldhash::HashMap;
 
 /// One closed volume: a footprint piece, the roof over it and the floor height.
 #[derive(Debug, Clone)]
@@ -62,7 +62,7 @@ pub fn mesh_group(volumes: &[Volume], roofs: &[RoofSurface], mesh: &mut Mesh) ->
         .collect();
 
     // Edges that appear in two volumes, in opposite directions.
-    let mut by_key: HashMap<(NodeKey, NodeKey), Vec<EdgeRef>> = HashMap::new();
+    let mut by_key: HashMap<(NodeKey, NodeKey), Vec<EdgeRef>> = HashMap::default();
     if volumes.len() > 1 {
         for (vi, v) in volumes.iter().enumerate() {
             for (r, ring) in v.footprint.rings().enumerate() {
@@ -88,7 +88,7 @@ pub fn mesh_group(volumes: &[Volume], roofs: &[RoofSurface], mesh: &mut Mesh) ->
 
     // Shared edges: the same points on both sides, where the roofs cross too; hidden walls go
     // only where both walls stand over the whole edge.
-    let mut partner: HashMap<(usize, usize, usize), Partner> = HashMap::new();
+    let mut partner: HashMap<(usize, usize, usize), Partner> = HashMap::default();
     for sides in by_key.values() {
         let [(va, ra, ea), (vb, rb, eb)] = [sides[0], sides[1]];
         let ring_a = ring_of(&volumes[va].footprint, ra);
@@ -135,7 +135,7 @@ pub fn mesh_group(volumes: &[Volume], roofs: &[RoofSurface], mesh: &mut Mesh) ->
     }
 
     // Heights at which vertical wall sides end, per node.
-    let mut node_heights: HashMap<NodeKey, Vec<f64>> = HashMap::new();
+    let mut node_heights: HashMap<NodeKey, Vec<f64>> = HashMap::default();
     if !partner.is_empty() {
         for v in volumes {
             let roof = &roofs[v.roof];

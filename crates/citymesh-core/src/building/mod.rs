@@ -15,6 +15,7 @@ pub mod defaults;
 pub mod footprint;
 pub mod generate;
 pub mod group;
+mod length;
 pub mod params;
 pub mod roof;
 pub mod roof_surface;

@@ -2,6 +2,7 @@
 //! footprint (turned for `roof:orientation`, or along `roof:direction` for skillions), a roof
 //! model's descending level function, and the heights of eaves and top
 //! (docs/method.md sections 4-6).
+use super::length::planar_length;
 
 use super::axes::RoofAxes;
 use super::roof::{Alt, RoofModel, RoofShape, model};
@@ -133,7 +134,7 @@ impl RoofSurface {
     fn bends_across(&self, p: Alt, q: Alt) -> bool {
         let m = [(p[0] + q[0]) / 2.0, (p[1] + q[1]) / 2.0];
         let d = [q[0] - p[0], q[1] - p[1]];
-        let len = d[0].hypot(d[1]);
+        let len = planar_length(d[0], d[1]);
         let e = 1e-4;
         let n = [-d[1] / len * e, d[0] / len * e];
         let f = |a: Alt| self.model.dlf(a);

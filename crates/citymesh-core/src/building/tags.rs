@@ -49,17 +49,51 @@ pub struct BuildingTags {
 
 impl BuildingTags {
     pub fn read(tags: &Tags) -> Self {
+        // One pass over the tags picks out the keys read below (cheaper than a lookup per key).
+        const KEYS: [&str; 16] = [
+            "building",
+            "building:part",
+            "height",
+            "min_height",
+            "building:levels",
+            "building:min_level",
+            "roof:levels",
+            "roof:height",
+            "roof:angle",
+            "roof:direction",
+            "roof:shape",
+            "roof:orientation",
+            "building:colour",
+            "roof:colour",
+            "building:material",
+            "roof:material",
+        ];
+        let mut found: [Option<&String>; KEYS.len()] = [None; KEYS.len()];
+        for (key, value) in tags {
+            if let Some(k) = KEYS
+                .iter()
+                .position(|k| k.len() == key.len() && *k == key.as_str())
+            {
+                found[k] = Some(value);
+            }
+        }
+        // Keys are few and tags per building a handful: comparing by length first is quick.
+        let get = |key: &str| {
+            KEYS.iter()
+                .zip(&found)
+                .find(|(k, _)| k.len() == key.len() && **k == key)
+                .and_then(|(_, v)| *v)
+        };
         let mut t = BuildingTags {
-            building_type: tags
-                .get("building")
+            building_type: get("building")
                 .filter(|v| v.as_str() != "no")
-                .or_else(|| tags.get("building:part"))
+                .or_else(|| get("building:part"))
                 .cloned()
                 .unwrap_or_default(),
             ..Default::default()
         };
         let mut take = |key: &'static str, parse: fn(&str) -> Option<f64>| -> Option<f64> {
-            let value = tags.get(key)?;
+            let value = get(key)?;
             let parsed = parse(value);
             if parsed.is_none() {
                 t.invalid.push(key);
@@ -88,7 +122,7 @@ impl BuildingTags {
                 Some(s) => ShapeTag::Known(s),
                 None => ShapeTag::Unsupported(v.clone()),
             });
-        match tags.get("roof:orientation").map(|v| v.trim()) {
+        match get("roof:orientation").map(|v| v.trim()) {
             None => {}
             Some("along") => t.orientation = Orientation::Along,
             Some("across") => t.orientation = Orientation::Across,
@@ -98,15 +132,15 @@ impl BuildingTags {
             ("building:colour", &mut t.building_colour),
             ("roof:colour", &mut t.roof_colour),
         ] {
-            if let Some(v) = tags.get(key) {
+            if let Some(v) = get(key) {
                 *slot = parse_colour(v);
                 if slot.is_none() {
                     t.invalid.push(key);
                 }
             }
         }
-        t.building_material = tags.get("building:material").cloned();
-        t.roof_material = tags.get("roof:material").cloned();
+        t.building_material = get("building:material").cloned();
+        t.roof_material = get("roof:material").cloned();
         t
     }
 }

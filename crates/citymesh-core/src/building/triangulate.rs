@@ -5,6 +5,7 @@
 //!
 //! Convex outlines without inner constraints get a fan; the rest a constrained Delaunay
 //! triangulation (spade), keeping the triangles inside the footprint.
+use super::length::planar_length;
 
 use super::footprint::{Footprint, orient};
 use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
@@ -267,7 +268,8 @@ fn convex_fan(points: &mut Vec<[f64; 2]>, on_edge: &[bool]) -> Option<Vec<[u32; 
         }
         let (a, b, c) = (points[(i + n - 1) % n], points[i], points[(i + 1) % n]);
         let o = orient(a, b, c);
-        let scale = (b[0] - a[0]).hypot(b[1] - a[1]) * (c[0] - b[0]).hypot(c[1] - b[1]);
+        let scale =
+            planar_length(b[0] - a[0], b[1] - a[1]) * planar_length(c[0] - b[0], c[1] - b[1]);
         // Within 1e-7 rad of a straight angle, a fan from a neighbour would make a sliver.
         if o < -1e-7 * scale {
             return None;

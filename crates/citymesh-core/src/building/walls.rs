@@ -1,6 +1,7 @@
 //! Wall pieces: vertical quadrilaterals over one stretch of a footprint edge, between a bottom and
 //! a top height at each end, with extra points on their vertical sides where neighbouring pieces
 //! end (so every edge is shared by exactly two triangles).
+use super::length::planar_length;
 
 use crate::mesh::{FaceStyle, Mesh};
 
@@ -21,7 +22,7 @@ pub const SAME_HEIGHT: f64 = 1e-6;
 /// seen from outside.
 pub fn push_wall_piece(mesh: &mut Mesh, u: WallEnd, v: WallEnd, style: FaceStyle) {
     // (distance along the wall, height) for the planar test, and 3D points.
-    let len = (v.at[0] - u.at[0]).hypot(v.at[1] - u.at[1]);
+    let len = planar_length(v.at[0] - u.at[0], v.at[1] - u.at[1]);
     let mut poly: Vec<(f64, f64, [f64; 3])> = Vec::with_capacity(8);
     let mut push = |w: f64, z: f64, at: [f64; 2]| {
         if let Some(last) = poly.last()

@@ -9,7 +9,7 @@ pub mod gltf;
 
 pub use check::{ClosedReport, check_closed};
 pub use colour::Rgb;
-pub use gltf::{EncodedGlb, Placement, encode_glb};
+pub use gltf::{EncodedGlb, Encoding, Placement, encode_glb};
 
 /// The cross product `(b - a) x (c - a)`: the normal of a counter-clockwise triangle, with twice
 /// its area as length.

@@ -8,7 +8,7 @@ use super::{Border, RoofChoice, Scene};
 use crate::building::BuildingStats;
 use crate::building::set::{BuildingSet, ClusterInfo, extent_with};
 use crate::geo::{BboxError, GeoBbox, ImplicitTile, TileCoord};
-use crate::mesh::{EncodedGlb, Placement};
+use crate::mesh::{EncodedGlb, Encoding, Placement};
 use crate::osm::BuildingRecord;
 use crate::terrain::{ElevationModel, GroundReport};
 use std::borrow::Cow;
@@ -71,6 +71,7 @@ impl SceneArea {
             groups,
             border: self.border(),
             placement: self.placement(),
+            encoding: Encoding::default(),
             roofs: None,
         })
     }
@@ -86,6 +87,8 @@ pub struct SceneRequest<'a> {
     pub groups: Vec<&'a ClusterInfo>,
     pub border: Border,
     pub placement: Placement,
+    /// How the GLB stores vertices.
+    pub encoding: Encoding,
     /// Roof shapes for records without a `roof:shape` tag (none: tags and defaults only).
     pub roofs: Option<&'a RoofChoice>,
 }
@@ -116,6 +119,11 @@ impl<'a> SceneRequest<'a> {
         }
     }
 
+    /// The same request encoded with `encoding`.
+    pub fn with_encoding(self, encoding: Encoding) -> Self {
+        Self { encoding, ..self }
+    }
+
     /// Each group's records as the generator sees them (with chosen roofs applied).
     fn group_records(&self) -> Vec<Vec<Cow<'a, BuildingRecord>>> {
         self.groups
@@ -142,7 +150,7 @@ impl<'a> SceneRequest<'a> {
     pub fn generate(&self, model: &ElevationModel) -> SceneOutput {
         let records = self.group_records();
         let scene = Scene::new(model, &self.bbox, &as_refs(&records), self.border);
-        Self::output(scene, self.placement, &records)
+        Self::output(scene, self.placement, self.encoding, &records)
     }
 
     /// Like [`SceneRequest::generate`], but gives up (`None`) as soon as `stop` says so (asked
@@ -154,12 +162,13 @@ impl<'a> SceneRequest<'a> {
     ) -> Option<SceneOutput> {
         let records = self.group_records();
         let scene = Scene::new_until(model, &self.bbox, &as_refs(&records), self.border, stop)?;
-        (!stop()).then(|| Self::output(scene, self.placement, &records))
+        (!stop()).then(|| Self::output(scene, self.placement, self.encoding, &records))
     }
 
     fn output(
         scene: Scene,
         placement: Placement,
+        encoding: Encoding,
         records: &[Vec<Cow<'_, BuildingRecord>>],
     ) -> SceneOutput {
         let skipped: std::collections::HashSet<&str> = scene
@@ -174,7 +183,7 @@ impl<'a> SceneRequest<'a> {
             .filter(|r| matches!(r, Cow::Owned(_)) && !skipped.contains(r.id.to_string().as_str()))
             .count();
         SceneOutput {
-            glb: scene.encode(placement),
+            glb: scene.encode(placement, encoding),
             ground: scene.ground,
             buildings: scene.buildings,
             chosen_roofs,

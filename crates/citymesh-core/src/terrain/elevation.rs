@@ -26,21 +26,46 @@ pub fn corner_height(cells: [Option<f64>; 4]) -> Option<f64> {
 /// `P = A + b * (B - A) + h * (2C - (A + B))`, where `b` is the position along `A`-`B` and `h` the
 /// distance from `A`-`B` towards `C`, both in cell units.
 #[inline]
-pub(crate) fn equation_1(c: f64, [sw, se, ne, nw]: [f64; 4], du: f64, dv: f64) -> f64 {
-    let (a, b_corner, b, h) = if du.abs() >= dv.abs() {
-        if du >= 0.0 {
-            (se, ne, dv + 0.5, 0.5 - du)
+pub(crate) fn equation_1(c: f64, corners: [f64; 4], du: f64, dv: f64) -> f64 {
+    let t = CellTriangle::holding(du, dv);
+    t.height(c, corners[t.a], corners[t.b])
+}
+
+/// The triangle of a cell (cut by its diagonals) that holds an offset from the centre: its base
+/// corners `A` and `B` as indices into `[sw, se, ne, nw]`, and the point's position `along` the
+/// base and `up` from it towards the centre, in cell units.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct CellTriangle {
+    a: usize,
+    b: usize,
+    along: f64,
+    up: f64,
+}
+
+impl CellTriangle {
+    #[inline]
+    pub(crate) fn holding(du: f64, dv: f64) -> Self {
+        let (a, b, along, up) = if du.abs() >= dv.abs() {
+            if du >= 0.0 {
+                (1, 2, dv + 0.5, 0.5 - du)
+            } else {
+                (3, 0, 0.5 - dv, du + 0.5)
+            }
+        } else if dv >= 0.0 {
+            (2, 3, 0.5 - du, 0.5 - dv)
         } else {
-            (nw, sw, 0.5 - dv, du + 0.5)
-        }
-    } else if dv >= 0.0 {
-        (ne, nw, 0.5 - du, 0.5 - dv)
-    } else {
-        (sw, se, du + 0.5, dv + 0.5)
-    };
-    let delta_b = b_corner - a; // Equation 1
-    let delta_h = 2.0 * c - (a + b_corner); // Equation 1
-    a + b * delta_b + h * delta_h // Equation 1
+            (0, 1, du + 0.5, dv + 0.5)
+        };
+        Self { a, b, along, up }
+    }
+
+    /// Equation 1 in this triangle, with centre height `c` and base corner heights `a`, `b`.
+    #[inline]
+    fn height(self, c: f64, a: f64, b_corner: f64) -> f64 {
+        let delta_b = b_corner - a; // Equation 1
+        let delta_h = 2.0 * c - (a + b_corner); // Equation 1
+        a + self.along * delta_b + self.up * delta_h // Equation 1
+    }
 }
 
 /// The cell holding sample-unit coordinate `u`, and the offset from its centre.
@@ -56,7 +81,7 @@ impl ElevationModel {
     /// a void cell (where the mesh has a hole). Missing files count as the 0 m fallback plane.
     pub fn elevation(&self, lon: f64, lat: f64) -> Option<f64> {
         let p = f64::from(self.per_degree());
-        self.elevation_with(lon * p, lat * p, |i, j| match self.sample(i, j) {
+        self.elevation_with(lon * p, lat * p, |_, _, s| match s {
             Sample::Valid(h) => Some(h),
             Sample::Void => None,
             Sample::Missing => Some(0.0),
@@ -68,8 +93,14 @@ impl ElevationModel {
     /// fails: with nothing valid nearby it answers 0 m.
     pub fn ground_height(&self, lon: f64, lat: f64) -> f64 {
         let p = f64::from(self.per_degree());
-        self.elevation_with(lon * p, lat * p, |i, j| Some(self.filled_sample(i, j)))
-            .unwrap_or(0.0)
+        self.elevation_with(lon * p, lat * p, |i, j, s| {
+            Some(match s {
+                Sample::Valid(h) => h,
+                Sample::Missing => 0.0,
+                Sample::Void => self.filled_sample(i, j),
+            })
+        })
+        .unwrap_or(0.0)
     }
 
     fn filled_sample(&self, i: i64, j: i64) -> f64 {
@@ -100,16 +131,21 @@ impl ElevationModel {
         0.0
     }
 
-    /// Equation 1 at sample-unit coordinates over any sample source (`None` = void).
+    /// Equation 1 at sample-unit coordinates, each sample read as `value(i, j, sample)` gives it
+    /// (`None` = void).
     pub(crate) fn elevation_with(
         &self,
         u: f64,
         v: f64,
-        sample: impl Fn(i64, i64) -> Option<f64>,
+        value: impl Fn(i64, i64, Sample) -> Option<f64>,
     ) -> Option<f64> {
         let (i, du) = cell_of(u);
         let (j, dv) = cell_of(v);
-        let c = sample(i, j)?;
+        let window = self.window(i, j);
+        // The sample at offset (di, dj) from the cell, each in -1..=1.
+        let sample =
+            |di: i64, dj: i64| value(i + di, j + dj, window[(dj + 1) as usize][(di + 1) as usize]);
+        let c = sample(0, 0)?;
         let corner = |ci: i64, cj: i64| {
             corner_height([
                 sample(ci, cj),
@@ -118,14 +154,16 @@ impl ElevationModel {
                 sample(ci + 1, cj + 1),
             ])
         };
-        // The centre is valid, so each corner has at least one valid cell.
-        let corners = [
-            corner(i - 1, j - 1)?,
-            corner(i, j - 1)?,
-            corner(i, j)?,
-            corner(i - 1, j)?,
-        ];
-        Some(equation_1(c, corners, du, dv))
+        // The centre is valid, so each corner has at least one valid cell. Only the two corners
+        // of the triangle holding the point are read.
+        let t = CellTriangle::holding(du, dv);
+        let corner_at = |k: usize| match k {
+            0 => corner(-1, -1),
+            1 => corner(0, -1),
+            2 => corner(0, 0),
+            _ => corner(-1, 0),
+        };
+        Some(t.height(c, corner_at(t.a)?, corner_at(t.b)?))
     }
 }
 

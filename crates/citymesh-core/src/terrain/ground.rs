@@ -10,7 +10,7 @@ use super::elevation::{corner_height, equation_1};
 use super::model::{ElevationModel, Sample};
 use crate::geo::{GeoBbox, LocalFrame};
 use crate::mesh::{FaceStyle, Material, Mesh, Rgb};
-use std::collections::HashMap;
+use foldhash::HashMap;
 
 /// What the ground of one bounding box is made of.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -106,7 +106,7 @@ pub fn build_ground(
     // Corner (ci, cj) sits at (ci + 0.5, cj + 0.5); it is created on first use.
     let corner_w = (ci1 - ci0 + 2) as usize;
     let mut corner_ids = vec![u32::MAX; corner_w * (cj1 - cj0 + 2) as usize];
-    let mut border_ids: HashMap<(u64, u64), u32> = HashMap::new();
+    let mut border_ids: HashMap<(u64, u64), u32> = HashMap::default();
     let style = FaceStyle {
         material: Material::Ground,
         colour: Rgb::GROUND,

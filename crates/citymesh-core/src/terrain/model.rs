@@ -7,7 +7,6 @@
 
 use super::hgt::{HgtTile, VOID};
 use crate::geo::GeoBbox;
-use std::collections::HashMap;
 use std::sync::Arc;
 
 /// One grid sample.
@@ -25,7 +24,66 @@ pub enum Sample {
 #[derive(Debug, Clone)]
 pub struct ElevationModel {
     per_degree: u32,
-    tiles: HashMap<(i32, i32), Arc<HgtTile>>,
+    tiles: TileIndex,
+}
+
+/// The loaded files by their south-west corner, in a dense grid over the degrees they span: a
+/// lookup is two subtractions and an index, with no hashing, since every ground sample takes one.
+#[derive(Debug, Clone, Default)]
+struct TileIndex {
+    south: i32,
+    west: i32,
+    columns: usize,
+    rows: usize,
+    cells: Vec<Option<Arc<HgtTile>>>,
+}
+
+impl TileIndex {
+    /// Files whose corner is not on the Earth (latitude -90..90, longitude -180..180) are left
+    /// out: no sample lies there.
+    fn new(tiles: Vec<Arc<HgtTile>>) -> Self {
+        let tiles: Vec<_> = tiles
+            .into_iter()
+            .filter(|t| (-90..90).contains(&t.south()) && (-180..180).contains(&t.west()))
+            .collect();
+        let (Some(south), Some(west)) = (
+            tiles.iter().map(|t| t.south()).min(),
+            tiles.iter().map(|t| t.west()).min(),
+        ) else {
+            return Self::default();
+        };
+        let north = tiles.iter().map(|t| t.south()).max().unwrap_or(south);
+        let east = tiles.iter().map(|t| t.west()).max().unwrap_or(west);
+        // At most 180 x 360 cells.
+        let rows = (i64::from(north) - i64::from(south) + 1) as usize;
+        let columns = (i64::from(east) - i64::from(west) + 1) as usize;
+        let mut cells = vec![None; rows * columns];
+        for t in tiles {
+            let at = (t.south() - south) as usize * columns + (t.west() - west) as usize;
+            cells[at] = Some(t);
+        }
+        Self {
+            south,
+            west,
+            columns,
+            rows,
+            cells,
+        }
+    }
+
+    #[inline]
+    fn get(&self, lat: i64, lon: i64) -> Option<&HgtTile> {
+        let row = usize::try_from(lat - i64::from(self.south)).ok()?;
+        let column = usize::try_from(lon - i64::from(self.west)).ok()?;
+        if row >= self.rows || column >= self.columns {
+            return None;
+        }
+        self.cells[row * self.columns + column].as_deref()
+    }
+
+    fn is_empty(&self) -> bool {
+        self.cells.is_empty()
+    }
 }
 
 impl Default for ElevationModel {
@@ -39,11 +97,10 @@ impl ElevationModel {
     /// degree when there are none); coarser tiles are interpolated bilinearly onto it.
     pub fn new(tiles: Vec<Arc<HgtTile>>) -> Self {
         let per_degree = tiles.iter().map(|t| t.per_degree()).max().unwrap_or(1200);
-        let tiles = tiles
-            .into_iter()
-            .map(|t| ((t.south(), t.west()), t))
-            .collect();
-        Self { per_degree, tiles }
+        Self {
+            per_degree,
+            tiles: TileIndex::new(tiles),
+        }
     }
 
     /// Sample steps per degree of the grid.
@@ -77,16 +134,36 @@ impl ElevationModel {
             n += 1;
         }
         for &(lat, lon, row, col) in &candidates[..n] {
-            let (Ok(lat), Ok(lon)) = (i32::try_from(lat), i32::try_from(lon)) else {
-                return Sample::Missing;
-            };
-            if let Some(tile) = self.tiles.get(&(lat, lon)) {
+            if let Some(tile) = self.tiles.get(lat, lon) {
                 return self.sample_in(tile, row, col);
             }
         }
         Sample::Missing
     }
 
+    /// The 3 x 3 samples around `(i, j)`, `[dj + 1][di + 1]`: with one division and one file
+    /// lookup when all nine lie inside one loaded file (the common case), else sample by sample.
+    pub(crate) fn window(&self, i: i64, j: i64) -> [[Sample; 3]; 3] {
+        let p = i64::from(self.per_degree);
+        let (lat, row) = ((j - 1).div_euclid(p), (j - 1).rem_euclid(p));
+        let (lon, col) = ((i - 1).div_euclid(p), (i - 1).rem_euclid(p));
+        // Rows and columns 1..p-2 of a file: no edge sample, so this file answers all nine.
+        if row >= 1
+            && row + 2 < p
+            && col >= 1
+            && col + 2 < p
+            && let Some(tile) = self.tiles.get(lat, lon)
+        {
+            return std::array::from_fn(|dj| {
+                std::array::from_fn(|di| self.sample_in(tile, row + dj as i64, col + di as i64))
+            });
+        }
+        std::array::from_fn(|dj| {
+            std::array::from_fn(|di| self.sample(i - 1 + di as i64, j - 1 + dj as i64))
+        })
+    }
+
+    #[inline]
     fn sample_in(&self, tile: &HgtTile, row: i64, col: i64) -> Sample {
         let q = i64::from(tile.per_degree());
         let p = i64::from(self.per_degree);

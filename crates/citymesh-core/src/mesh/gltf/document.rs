@@ -1,200 +1,342 @@
-//! Stage 3 of the encoder: the glTF JSON document (built with `gltf-json`) and its binary
-//! buffer.
+//! Stage 4 of the encoder: the glTF JSON document and its binary buffer, in the chosen
+//! [`Encoding`].
 //!
-//! The buffer holds, in order: all positions (f32 VEC3), all normals (f32 VEC3), all colours
+//! The buffer holds, in order: all positions, all normals (where stored), all colours
 //! (normalised u8 VEC4), each a view shared by the primitives' accessors (hence a byte stride),
-//! then each primitive's indices (u16 when its vertices fit, else u32) in a view of its own. The
-//! JSON is assembled from the sizes alone, so the buffer can be written straight into the GLB.
+//! then each primitive's indices (u16 when its vertices fit, else u32) in a view of its own.
+//! Plain files store f32 positions and normals; quantized ones u16 positions (padded to 8 bytes)
+//! and normalised i8 normals (padded to 4) under `KHR_mesh_quantization`, the node's matrix
+//! mapping steps back to metres. Meshopt files compress each view with meshoptimizer's codecs
+//! (`EXT_meshopt_compression`, required): the GLB's buffer holds the compressed views, and a
+//! second buffer without data marks where the decoded views go.
 
-use super::layout::{IndexedLayout, LayoutPrimitive};
-use super::placement::{NodePlacement, Placed};
-use gltf_json as json;
-use json::validation::{Checked::Valid, USize64};
-use json::{Index, accessor, buffer, material, mesh};
-use serde_json::{Value, json as value};
-use std::collections::BTreeMap;
+use super::encoding::Encoding;
+use super::layout::IndexedLayout;
+use super::meshopt::{ViewMode, compress_view};
+use super::placement::NodePlacement;
+use super::quantize::Quantization;
+use serde_json::{Map, Value, json};
 
 const GENERATOR: &str = concat!("citymesh ", env!("CARGO_PKG_VERSION"));
 
-/// The JSON document of a layout; its binary buffer is [`write_binary`]'s output.
-pub fn assemble(layout: &IndexedLayout, placed: &Placed, buildings: &[String]) -> Vec<u8> {
-    let mut root = json::Root {
-        asset: json::Asset {
-            copyright: None,
-            extensions: None,
-            extras: None,
-            generator: Some(GENERATOR.to_owned()),
-            min_version: None,
-            version: "2.0".to_owned(),
-        },
-        ..json::Root::default()
-    };
-    let extras = scene_extras(&placed.node, buildings);
+const ARRAY_BUFFER: u32 = 34_962;
+const ELEMENT_ARRAY_BUFFER: u32 = 34_963;
+const BYTE: u32 = 5_120;
+const UNSIGNED_BYTE: u32 = 5_121;
+const UNSIGNED_SHORT: u32 = 5_123;
+const UNSIGNED_INT: u32 = 5_125;
+const FLOAT: u32 = 5_126;
+
+/// A JSON document and the binary buffer it describes.
+pub struct Document {
+    pub json: Vec<u8>,
+    pub bin: Vec<u8>,
+}
+
+/// One buffer view before compression.
+struct View {
+    offset: usize,
+    length: usize,
+    /// Bytes per element: the byte stride of an attribute view, the index size of an index view.
+    element: usize,
+    target: u32,
+}
+
+impl View {
+    fn mode(&self) -> ViewMode {
+        if self.target == ELEMENT_ARRAY_BUFFER {
+            ViewMode::Triangles
+        } else {
+            ViewMode::Attributes
+        }
+    }
+}
+
+/// Sizes of the stored attributes in an encoding.
+struct AttributeSizes {
+    position: usize,
+    normal: usize,
+}
+
+fn sizes(encoding: Encoding) -> AttributeSizes {
+    if encoding.is_quantized() {
+        AttributeSizes {
+            position: 8,
+            normal: 4,
+        }
+    } else {
+        AttributeSizes {
+            position: 12,
+            normal: 12,
+        }
+    }
+}
+
+/// Writes the document of `layout` in `encoding`. `quantization` must be given for the quantized
+/// encodings (the positions in `layout` are then step counts).
+pub fn assemble(
+    layout: &IndexedLayout,
+    node: &NodePlacement,
+    quantization: Option<Quantization>,
+    encoding: Encoding,
+    buildings: &[String],
+) -> Document {
+    let mut root = Map::new();
+    root.insert(
+        "asset".into(),
+        json!({"generator": GENERATOR, "version": "2.0"}),
+    );
+    let extras = scene_extras(node, buildings);
     let vertices = layout.vertex_count();
     if vertices == 0 {
-        root.scenes.push(scene(Vec::new(), extras));
-        root.scene = Some(Index::new(0));
-        return to_json(&root, &placed.node);
+        root.insert("scene".into(), json!(0));
+        root.insert(
+            "scenes".into(),
+            json!([{"name": "citymesh", "extras": extras}]),
+        );
+        return Document {
+            json: serde_json::to_vec(&Value::Object(root)).unwrap_or_default(),
+            bin: Vec::new(),
+        };
     }
+    let size = sizes(encoding);
+    let (bin, views) = write_binary(layout, encoding, &size);
 
-    let pos_len = vertices * 12;
-    let col_len = vertices * 4;
-    let positions = root.push(view(0, pos_len, Some(12), buffer::Target::ArrayBuffer));
-    let normals = root.push(view(
-        pos_len,
-        pos_len,
-        Some(12),
-        buffer::Target::ArrayBuffer,
-    ));
-    let colours = root.push(view(
-        pos_len * 2,
-        col_len,
-        Some(4),
-        buffer::Target::ArrayBuffer,
-    ));
-    let mut index_offset = pos_len * 2 + col_len;
-
-    let mut primitives = Vec::with_capacity(layout.primitives.len());
+    let mut accessors = Vec::new();
+    let mut materials = Vec::new();
+    let mut primitives = Vec::new();
+    // Views 0.. are positions, normals (if any), colours, then one per primitive's indices.
+    let normals_view = layout.has_normals.then_some(1);
+    let colours_view = if layout.has_normals { 2 } else { 1 };
     let mut first = 0usize;
-    for p in &layout.primitives {
+    for (k, p) in layout.primitives.iter().enumerate() {
         let count = p.positions.len();
         let (min, max) = bounds(&p.positions);
-        let position = root.push(attribute(
-            positions,
-            first * 12,
-            count,
-            accessor::ComponentType::F32,
-            accessor::Type::Vec3,
-            Some((min, max)),
-        ));
-        let normal = root.push(attribute(
-            normals,
-            first * 12,
-            count,
-            accessor::ComponentType::F32,
-            accessor::Type::Vec3,
-            None,
-        ));
-        let mut colour = attribute(
-            colours,
-            first * 4,
-            count,
-            accessor::ComponentType::U8,
-            accessor::Type::Vec4,
-            None,
-        );
-        colour.normalized = true;
-        let colour = root.push(colour);
-        let (component, size) = index_type(p);
-        let length = p.indices.len() * size;
-        let index_view = root.push(view(
-            index_offset,
-            length,
-            None,
-            buffer::Target::ElementArrayBuffer,
-        ));
-        index_offset += length.next_multiple_of(4);
-        let indices = root.push(attribute(
-            index_view,
-            0,
-            p.indices.len(),
-            component,
-            accessor::Type::Scalar,
-            None,
-        ));
+        let mut attributes = Map::new();
+        attributes.insert("POSITION".into(), json!(accessors.len()));
+        accessors.push(json!({
+            "bufferView": 0,
+            "byteOffset": first * size.position,
+            "componentType": if encoding.is_quantized() { UNSIGNED_SHORT } else { FLOAT },
+            "count": count,
+            "type": "VEC3",
+            "min": min,
+            "max": max,
+        }));
+        if let Some(view) = normals_view {
+            attributes.insert("NORMAL".into(), json!(accessors.len()));
+            let mut a = json!({
+                "bufferView": view,
+                "byteOffset": first * size.normal,
+                "componentType": if encoding.is_quantized() { BYTE } else { FLOAT },
+                "count": count,
+                "type": "VEC3",
+            });
+            if encoding.is_quantized() {
+                a["normalized"] = json!(true);
+            }
+            accessors.push(a);
+        }
+        attributes.insert("COLOR_0".into(), json!(accessors.len()));
+        accessors.push(json!({
+            "bufferView": colours_view,
+            "byteOffset": first * 4,
+            "componentType": UNSIGNED_BYTE,
+            "normalized": true,
+            "count": count,
+            "type": "VEC4",
+        }));
+        let index_view = colours_view + 1 + k;
+        let indices = accessors.len();
+        accessors.push(json!({
+            "bufferView": index_view,
+            "componentType": if views[index_view].element == 2 { UNSIGNED_SHORT } else { UNSIGNED_INT },
+            "count": p.indices.len(),
+            "type": "SCALAR",
+        }));
         let name = p.material.map_or("mesh", |m| m.name());
-        let material = root.push(json::Material {
-            name: Some(name.to_owned()),
-            pbr_metallic_roughness: material::PbrMetallicRoughness {
-                base_color_factor: material::PbrBaseColorFactor([1.0, 1.0, 1.0, 1.0]),
-                metallic_factor: material::StrengthFactor(0.0),
-                roughness_factor: material::StrengthFactor(0.9),
-                ..material::PbrMetallicRoughness::default()
+        materials.push(json!({
+            "name": name,
+            "pbrMetallicRoughness": {
+                "baseColorFactor": [1.0, 1.0, 1.0, 1.0],
+                "metallicFactor": 0.0,
+                "roughnessFactor": 0.9,
             },
-            ..json::Material::default()
-        });
-        let attributes = BTreeMap::from([
-            (Valid(mesh::Semantic::Positions), position),
-            (Valid(mesh::Semantic::Normals), normal),
-            (Valid(mesh::Semantic::Colors(0)), colour),
-        ]);
-        primitives.push(mesh::Primitive {
-            attributes,
-            extensions: None,
-            extras: None,
-            indices: Some(indices),
-            material: Some(material),
-            mode: Valid(mesh::Mode::Triangles),
-            targets: None,
-        });
+        }));
+        primitives.push(json!({
+            "attributes": attributes,
+            "indices": indices,
+            "material": k,
+            "mode": 4,
+        }));
         first += count;
     }
-    root.push(json::Buffer {
-        byte_length: USize64::from(binary_len(layout)),
-        name: None,
-        uri: None,
-        extensions: None,
-        extras: None,
-    });
-    let mesh = root.push(json::Mesh {
-        extensions: None,
-        extras: None,
-        name: Some("citymesh".to_owned()),
-        primitives,
-        weights: None,
-    });
-    let node = root.push(json::Node {
-        mesh: Some(mesh),
-        name: Some("citymesh".to_owned()),
-        ..json::Node::default()
-    });
-    root.scenes.push(scene(vec![node], extras));
-    root.scene = Some(Index::new(0));
-    to_json(&root, &placed.node)
-}
 
-/// The length of the binary buffer: the attributes, then each primitive's indices padded to 4
-/// bytes.
-pub fn binary_len(layout: &IndexedLayout) -> usize {
-    let vertices = layout.vertex_count();
-    let indices: usize = layout
-        .primitives
-        .iter()
-        .map(|p| (p.indices.len() * index_type(p).1).next_multiple_of(4))
-        .sum();
-    vertices * (12 + 12 + 4) + indices
-}
-
-/// Appends the binary buffer [`assemble`] describes ([`binary_len`] bytes) to `out`.
-pub fn write_binary(layout: &IndexedLayout, out: &mut Vec<u8>) {
-    let start = out.len();
-    out.resize(start + binary_len(layout), 0);
-    let mut rest = &mut out[start..];
-    let mut take = |bytes: usize| {
-        let (head, tail) = std::mem::take(&mut rest).split_at_mut(bytes);
-        rest = tail;
-        head
+    let (bin, buffers, view_json) = if encoding == Encoding::Meshopt {
+        compressed(&bin, &views)
+    } else {
+        let views = views
+            .iter()
+            .map(|v| view_json(0, v.offset, v.length, v))
+            .collect::<Vec<_>>();
+        let buffers = json!([{"byteLength": bin.len()}]);
+        (bin, buffers, views)
     };
-    for p in &layout.primitives {
-        write_vec3(take(p.positions.len() * 12), &p.positions);
+
+    let mut node_json = json!({"mesh": 0, "name": "citymesh"});
+    if let Some(matrix) = node_matrix(node, quantization) {
+        node_json["matrix"] = json!(matrix);
     }
-    for p in &layout.primitives {
-        write_vec3(take(p.normals.len() * 12), &p.normals);
+    let extensions = encoding.extensions();
+    if !extensions.is_empty() {
+        root.insert("extensionsUsed".into(), json!(extensions));
+        root.insert("extensionsRequired".into(), json!(extensions));
     }
+    root.insert("accessors".into(), Value::Array(accessors));
+    root.insert("bufferViews".into(), Value::Array(view_json));
+    root.insert("buffers".into(), buffers);
+    root.insert("materials".into(), Value::Array(materials));
+    root.insert(
+        "meshes".into(),
+        json!([{"name": "citymesh", "primitives": primitives}]),
+    );
+    root.insert("nodes".into(), json!([node_json]));
+    root.insert("scene".into(), json!(0));
+    root.insert(
+        "scenes".into(),
+        json!([{"name": "citymesh", "nodes": [0], "extras": extras}]),
+    );
+    Document {
+        json: serde_json::to_vec(&Value::Object(root)).unwrap_or_default(),
+        bin,
+    }
+}
+
+fn view_json(buffer: usize, offset: usize, length: usize, v: &View) -> Value {
+    let mut view = json!({
+        "buffer": buffer,
+        "byteOffset": offset,
+        "byteLength": length,
+        "target": v.target,
+    });
+    if v.target == ARRAY_BUFFER {
+        view["byteStride"] = json!(v.element);
+    }
+    view
+}
+
+/// The meshopt form: every view compressed into buffer 0; the views point into buffer 1, which
+/// has no data of its own (the decoder fills it).
+fn compressed(bin: &[u8], views: &[View]) -> (Vec<u8>, Value, Vec<Value>) {
+    let mut out = Vec::with_capacity(bin.len() / 3);
+    let mut json_views = Vec::with_capacity(views.len());
+    for v in views {
+        let data = &bin[v.offset..v.offset + v.length];
+        let packed = compress_view(data, v.element, v.mode());
+        let at = out.len();
+        out.extend_from_slice(&packed);
+        while !out.len().is_multiple_of(4) {
+            out.push(0);
+        }
+        let mut view = view_json(1, v.offset, v.length, v);
+        view["extensions"] = json!({"EXT_meshopt_compression": {
+            "buffer": 0,
+            "byteOffset": at,
+            "byteLength": packed.len(),
+            "byteStride": v.element,
+            "count": v.length / v.element,
+            "mode": v.mode().name(),
+        }});
+        json_views.push(view);
+    }
+    let buffers = json!([
+        {"byteLength": out.len()},
+        {"byteLength": bin.len(), "extensions": {"EXT_meshopt_compression": {"fallback": true}}},
+    ]);
+    (out, buffers, json_views)
+}
+
+/// The uncompressed buffer and its views: positions, normals (if any), colours, then each
+/// primitive's indices, each view starting at a multiple of 4 bytes.
+fn write_binary(
+    layout: &IndexedLayout,
+    encoding: Encoding,
+    size: &AttributeSizes,
+) -> (Vec<u8>, Vec<View>) {
+    let vertices = layout.vertex_count();
+    let mut views = Vec::with_capacity(3 + layout.primitives.len());
+    let mut offset = 0;
+    let mut add = |length: usize, element: usize, target: u32| {
+        views.push(View {
+            offset,
+            length,
+            element,
+            target,
+        });
+        offset += length.next_multiple_of(4);
+    };
+    add(vertices * size.position, size.position, ARRAY_BUFFER);
+    if layout.has_normals {
+        add(vertices * size.normal, size.normal, ARRAY_BUFFER);
+    }
+    add(vertices * 4, 4, ARRAY_BUFFER);
     for p in &layout.primitives {
-        for (d, c) in take(p.colours.len() * 4)
+        let element = index_size(p.positions.len());
+        add(p.indices.len() * element, element, ELEMENT_ARRAY_BUFFER);
+    }
+    let mut bin = vec![0u8; offset];
+    let quantized = encoding.is_quantized();
+    // Positions.
+    {
+        let v = &views[0];
+        let mut dst = bin[v.offset..v.offset + v.length].chunks_exact_mut(size.position);
+        for p in layout.primitives.iter().flat_map(|p| &p.positions) {
+            let Some(d) = dst.next() else { break };
+            if quantized {
+                for k in 0..3 {
+                    // Whole step counts within 0..=65535: exact.
+                    d[2 * k..2 * k + 2].copy_from_slice(&(p[k] as u16).to_le_bytes());
+                }
+            } else {
+                for k in 0..3 {
+                    d[4 * k..4 * k + 4].copy_from_slice(&p[k].to_le_bytes());
+                }
+            }
+        }
+    }
+    let mut next = 1;
+    if layout.has_normals {
+        let v = &views[next];
+        let mut dst = bin[v.offset..v.offset + v.length].chunks_exact_mut(size.normal);
+        for n in layout.primitives.iter().flat_map(|p| &p.normals) {
+            let Some(d) = dst.next() else { break };
+            if quantized {
+                for k in 0..3 {
+                    d[k] = ((n[k] * 127.0).round().clamp(-127.0, 127.0) as i8).to_le_bytes()[0];
+                }
+            } else {
+                for k in 0..3 {
+                    d[4 * k..4 * k + 4].copy_from_slice(&n[k].to_le_bytes());
+                }
+            }
+        }
+        next += 1;
+    }
+    {
+        let v = &views[next];
+        for (d, c) in bin[v.offset..v.offset + v.length]
             .chunks_exact_mut(4)
-            .zip(&p.colours)
+            .zip(layout.primitives.iter().flat_map(|p| &p.colours))
         {
             d.copy_from_slice(c);
         }
+        next += 1;
     }
-    for p in &layout.primitives {
-        let size = index_type(p).1;
-        let dst = take((p.indices.len() * size).next_multiple_of(4));
-        if size == 2 {
+    for (p, v) in layout.primitives.iter().zip(&views[next..]) {
+        let dst = &mut bin[v.offset..v.offset + v.length];
+        if v.element == 2 {
             for (d, &i) in dst.chunks_exact_mut(2).zip(&p.indices) {
-                // The layout's vertices fit u16 here, so the cast is exact.
+                // The primitive's vertices fit u16 here, so the cast is exact.
                 d.copy_from_slice(&(i as u16).to_le_bytes());
             }
         } else {
@@ -203,103 +345,60 @@ pub fn write_binary(layout: &IndexedLayout, out: &mut Vec<u8>) {
             }
         }
     }
+    (bin, views)
 }
 
-fn write_vec3(dst: &mut [u8], values: &[[f32; 3]]) {
-    for (d, v) in dst.chunks_exact_mut(12).zip(values) {
-        d[0..4].copy_from_slice(&v[0].to_le_bytes());
-        d[4..8].copy_from_slice(&v[1].to_le_bytes());
-        d[8..12].copy_from_slice(&v[2].to_le_bytes());
-    }
-}
-
-/// u16 indices when the primitive's vertices fit, else u32: the type and its size.
-fn index_type(p: &LayoutPrimitive) -> (accessor::ComponentType, usize) {
-    if p.positions.len() <= usize::from(u16::MAX) {
-        (accessor::ComponentType::U16, 2)
+/// 2-byte indices when a primitive's vertices fit (65,535 itself is reserved), else 4.
+fn index_size(vertices: usize) -> usize {
+    if vertices <= usize::from(u16::MAX) {
+        2
     } else {
-        (accessor::ComponentType::U32, 4)
+        4
     }
 }
 
-fn scene(nodes: Vec<Index<json::Node>>, extras: Value) -> json::Scene {
-    json::Scene {
-        extensions: None,
-        extras: serde_json::value::to_raw_value(&extras).ok(),
-        name: Some("citymesh".to_owned()),
-        nodes,
+/// The node's column-major matrix: ECEF content turns z-up to y-up and moves to the centre;
+/// quantized content first maps steps to metres. `None` when it is the identity.
+fn node_matrix(node: &NodePlacement, q: Option<Quantization>) -> Option<[f64; 16]> {
+    let (s, o) = q.map_or((1.0, [0.0; 3]), |q| (q.step, q.offset));
+    match *node {
+        NodePlacement::Origin { .. } => q.map(|_| {
+            [
+                s, 0.0, 0.0, 0.0, 0.0, s, 0.0, 0.0, 0.0, 0.0, s, 0.0, o[0], o[1], o[2], 1.0,
+            ]
+        }),
+        NodePlacement::EcefCentre(c) => Some([
+            s,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            -s,
+            0.0,
+            0.0,
+            s,
+            0.0,
+            0.0,
+            o[0] + c[0],
+            o[2] + c[2],
+            -o[1] - c[1],
+            1.0,
+        ]),
     }
 }
 
 /// Where the content sits and which buildings it holds, for clients.
 fn scene_extras(node: &NodePlacement, buildings: &[String]) -> Value {
     match *node {
-        NodePlacement::Origin { lon, lat, height } => value!({
+        NodePlacement::Origin { lon, lat, height } => json!({
             "origin": {"lon": lon, "lat": lat, "height": height},
             "heightReference": "metres above mean sea level (EGM96 geoid, as SRTM)",
             "axes": "x = east, y = up, z = -north, metres from the origin (local frame on WGS84)",
             "buildings": buildings}),
-        NodePlacement::EcefCentre(_) => value!({
+        NodePlacement::EcefCentre(_) => json!({
             "axes": "ECEF (WGS84) metres relative to the node translation, z-up; heights above the ellipsoid are SRTM heights",
             "buildings": buildings}),
-    }
-}
-
-/// The document as JSON bytes. `gltf-json` keeps node matrices in f32, which would move ECEF
-/// content by up to half a metre, so the ECEF node's matrix is written here in f64.
-fn to_json(root: &json::Root, node: &NodePlacement) -> Vec<u8> {
-    let NodePlacement::EcefCentre(c) = *node else {
-        return serde_json::to_vec(root).unwrap_or_default();
-    };
-    let mut doc = serde_json::to_value(root).unwrap_or(Value::Null);
-    if let Some(n) = doc.pointer_mut("/nodes/0") {
-        // z-up to y-up, then the centre (in y-up axes), column-major.
-        n["matrix"] = value!([
-            1.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 1.0, 0.0, 0.0, c[0], c[2], -c[1], 1.0
-        ]);
-    }
-    serde_json::to_vec(&doc).unwrap_or_default()
-}
-
-fn view(
-    offset: usize,
-    length: usize,
-    stride: Option<usize>,
-    target: buffer::Target,
-) -> buffer::View {
-    buffer::View {
-        buffer: Index::new(0),
-        byte_length: USize64::from(length),
-        byte_offset: Some(USize64::from(offset)),
-        byte_stride: stride.map(buffer::Stride),
-        name: None,
-        target: Some(Valid(target)),
-        extensions: None,
-        extras: None,
-    }
-}
-
-fn attribute(
-    view: Index<buffer::View>,
-    offset: usize,
-    count: usize,
-    component: accessor::ComponentType,
-    kind: accessor::Type,
-    bounds: Option<([f32; 3], [f32; 3])>,
-) -> json::Accessor {
-    json::Accessor {
-        buffer_view: Some(view),
-        byte_offset: Some(USize64::from(offset)),
-        count: USize64::from(count),
-        component_type: Valid(accessor::GenericComponentType(component)),
-        extensions: None,
-        extras: None,
-        type_: Valid(kind),
-        min: bounds.map(|(min, _)| value!(min)),
-        max: bounds.map(|(_, max)| value!(max)),
-        name: None,
-        normalized: false,
-        sparse: None,
     }
 }
 

@@ -1,22 +1,32 @@
-//! glTF 2.0 binary (GLB) encoding of a [`Mesh`], in four stages that each own one concern:
+//! glTF 2.0 binary (GLB) encoding of a [`Mesh`], in stages that each own one concern:
 //!
 //! 1. [`placement`]: where the mesh sits on the Earth. Local east/north/up metres become the
 //!    file's axes: glTF's y-up local frame, or Earth-centred (ECEF) coordinates for 3D Tiles. All
 //!    geodesy happens here.
-//! 2. [`layout`]: the indexed vertex layout. One primitive per [`super::Material`]; a vertex is
-//!    shared by the triangles of one planar face (same corner, colour and normal), so a wall quad
-//!    is 4 vertices and 6 indices, and faces stay flat shaded.
-//! 3. [`document`]: the glTF JSON, assembled with `gltf-json`, and the binary buffer.
-//! 4. [`container`]: the GLB container (header, JSON chunk, BIN chunk).
+//! 2. [`quantize`]: positions as the [`Encoding`] stores them: f32 metres, or u16 steps in a box.
+//! 3. [`layout`]: the indexed vertex layout. One primitive per [`super::Material`]; vertices
+//!    welded by stored position and shared within a face (or, without normals, by every face
+//!    of a colour); for `meshopt`, reordered by [`meshopt`] for its codecs.
+//! 4. [`document`]: the glTF JSON and the binary buffer in the encoding.
+//! 5. [`container`]: the GLB container (header, JSON chunk, BIN chunk).
+//!
+//! Normals are stored for Earth-centred content only: CesiumJS, which loads 3D Tiles, lights a
+//! primitive without normals as unlit, while three.js (and every client following the glTF
+//! specification) computes flat normals itself, so local-frame files leave them out.
 
 mod container;
 mod document;
+mod encoding;
 mod layout;
+mod meshopt;
 mod placement;
+mod quantize;
 
 pub use container::write_container_with;
+pub use encoding::{Encoding, UnknownEncoding};
 pub use layout::{IndexedLayout, LayoutPrimitive};
-pub use placement::{Placed, Placement, place};
+pub use placement::{NodePlacement, Placed, Placement, local_axes, node_placement, place};
+pub use quantize::{Quantization, Stored, store};
 
 use super::Mesh;
 use crate::geo::LocalFrame;
@@ -31,20 +41,37 @@ pub struct EncodedGlb {
     pub triangles: usize,
 }
 
-/// Encodes `mesh`, built in `frame`, with the given placement. `buildings` (OSM ids such as
-/// `way/123`) are listed in `scenes[0].extras.buildings`.
+/// Encodes `mesh`, built in `frame`, with the given placement and encoding. `buildings` (OSM
+/// ids such as `way/123`) are listed in `scenes[0].extras.buildings`.
 pub fn encode_glb(
     mesh: &Mesh,
     frame: &LocalFrame,
     placement: Placement,
+    encoding: Encoding,
     buildings: &[String],
 ) -> EncodedGlb {
-    let placed = place(mesh, frame, placement);
-    let layout = IndexedLayout::new(mesh, &placed.positions);
+    // Local files: positions are the mesh's, turned to glTF axes on the way into storage.
+    // Earth-centred ones: placed first, and the placed positions give the normals they store.
+    let (stored, ecef, node) = match placement {
+        Placement::LocalEnu => {
+            let node = node_placement(frame, placement);
+            let stored = store(mesh.positions.iter().map(|&p| local_axes(p)), encoding);
+            (stored, None, node)
+        }
+        Placement::Ecef => {
+            let placed = place(mesh, frame, placement);
+            let stored = store(placed.positions.iter().copied(), encoding);
+            (stored, Some(placed.positions), placed.node)
+        }
+    };
+    let mut layout = IndexedLayout::new(mesh, &stored.positions, ecef.as_deref());
+    if encoding == Encoding::Meshopt {
+        layout.primitives.iter_mut().for_each(meshopt::reorder);
+    }
     let (vertices, triangles) = (layout.vertex_count(), layout.triangle_count());
-    let json = document::assemble(&layout, &placed, buildings);
-    let bytes = write_container_with(json, document::binary_len(&layout), |out| {
-        document::write_binary(&layout, out);
+    let doc = document::assemble(&layout, &node, stored.quantization, encoding, buildings);
+    let bytes = write_container_with(doc.json, doc.bin.len(), |out| {
+        out.extend_from_slice(&doc.bin);
     });
     EncodedGlb {
         bytes,

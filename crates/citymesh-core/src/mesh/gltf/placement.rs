@@ -36,17 +36,31 @@ pub enum NodePlacement {
     EcefCentre([f64; 3]),
 }
 
-/// Places every vertex of `mesh`, built in `frame`.
-pub fn place(mesh: &Mesh, frame: &LocalFrame, placement: Placement) -> Placed {
+/// A local east/north/up position in glTF's y-up axes: (east, up, -north).
+#[inline]
+pub fn local_axes(p: [f64; 3]) -> [f64; 3] {
+    [p[0], p[2], -p[1]]
+}
+
+/// What the file records for content built in `frame` with `placement`.
+pub fn node_placement(frame: &LocalFrame, placement: Placement) -> NodePlacement {
     let (lon, lat, height) = frame.origin();
     match placement {
-        Placement::LocalEnu => Placed {
-            positions: mesh.positions.iter().map(|p| [p[0], p[2], -p[1]]).collect(),
-            node: NodePlacement::Origin { lon, lat, height },
+        Placement::LocalEnu => NodePlacement::Origin { lon, lat, height },
+        // The centre at 0 m: every scene shares the height reference of its frame.
+        Placement::Ecef => NodePlacement::EcefCentre(geodetic_to_ecef(lon, lat, 0.0)),
+    }
+}
+
+/// Places every vertex of `mesh`, built in `frame`.
+pub fn place(mesh: &Mesh, frame: &LocalFrame, placement: Placement) -> Placed {
+    let node = node_placement(frame, placement);
+    match node {
+        NodePlacement::Origin { .. } => Placed {
+            positions: mesh.positions.iter().map(|&p| local_axes(p)).collect(),
+            node,
         },
-        Placement::Ecef => {
-            // The centre at 0 m: every scene shares the height reference of its frame.
-            let c = geodetic_to_ecef(lon, lat, 0.0);
+        NodePlacement::EcefCentre(c) => {
             let positions = mesh
                 .positions
                 .iter()
@@ -56,10 +70,7 @@ pub fn place(mesh: &Mesh, frame: &LocalFrame, placement: Placement) -> Placed {
                     [e[0] - c[0], e[1] - c[1], e[2] - c[2]]
                 })
                 .collect();
-            Placed {
-                positions,
-                node: NodePlacement::EcefCentre(c),
-            }
+            Placed { positions, node }
         }
     }
 }

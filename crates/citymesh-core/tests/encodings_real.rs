@@ -1,0 +1,42 @@
+//! GLB bytes per building on the whole Karlsruhe-Kirchfeld scene (3,019 buildings and parts),
+//! against the goals of the speed-and-bytes work: plain at most 1,000 B per building, meshopt at
+//! most 350 B, in the local frame citymesh serves scenes and XYZ tiles in.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
+
+mod common;
+
+use citymesh_core::building::set::BuildingSet;
+use citymesh_core::mesh::{Encoding, Placement};
+use citymesh_core::osm::read_buildings;
+use citymesh_core::scene::{Border, Scene};
+use common::{model, osm_bytes};
+
+#[test]
+fn kirchfeld_bytes_per_building_meet_the_goals() {
+    let m = model(&["N49E008.hgt"]);
+    let set = BuildingSet::new(
+        read_buildings(&osm_bytes("karlsruhe-kirchfeld.osm.pbf"))
+            .unwrap()
+            .buildings,
+    );
+    let bbox = set.extent().unwrap();
+    let scene = Scene::new(&m, &bbox, &set.groups(), Border::Whole);
+    assert_eq!(scene.buildings.generated, 3019);
+    let per_building = |e: Encoding| {
+        let glb = scene.encode(Placement::LocalEnu, e);
+        // Every encoding keeps (nearly) every triangle of the mesh.
+        assert!(
+            glb.triangles * 100 >= scene.mesh.triangles.len() * 96,
+            "{e}"
+        );
+        glb.bytes.len() / scene.buildings.generated
+    };
+    let (plain, quantized, meshopt) = (
+        per_building(Encoding::Plain),
+        per_building(Encoding::Quantized),
+        per_building(Encoding::Meshopt),
+    );
+    assert!(plain <= 1000, "plain: {plain} B per building");
+    assert!(meshopt <= 350, "meshopt: {meshopt} B per building");
+    assert!(meshopt < quantized && quantized < plain);
+}
