@@ -21,6 +21,10 @@ pub enum Command {
     /// Store OSM files (PBF, OSM XML or Overpass JSON, optionally .gz) as data tiles in the
     /// cache database, so `serve --offline` has buildings without any upstream.
     Import(ImportArgs),
+    /// Make one scene from OSM and SRTM files into a GLB file (a batch export, no server):
+    /// `citymesh scene --osm FILE --dem-dir DIR [--bbox ...] -o out.glb [--encoding meshopt]
+    /// [--stats out.json]`.
+    Scene(SceneArgs),
     /// Render a seeded set of synthetic roof crops (PNG) with labels, to train or test the roof
     /// classifier (training/roof_classifier/README.md).
     RenderRoofs(RenderRoofsArgs),
@@ -201,6 +205,55 @@ pub struct RenderRoofsArgs {
     /// Directory to write `images/*.png` and `labels.csv` into.
     #[arg(long, short)]
     pub out: PathBuf,
+}
+
+/// Options of `citymesh scene`.
+#[derive(Debug, Clone, Parser)]
+pub struct SceneArgs {
+    /// OSM data: OSM PBF, OSM XML or Overpass JSON, optionally gzipped (repeat for several).
+    #[arg(long, required = true)]
+    pub osm: Vec<PathBuf>,
+
+    /// Directory with SRTM .hgt files (searched recursively); missing ones leave the ground flat
+    /// at 0 m there, with a warning.
+    #[arg(long, default_value = "data/dem")]
+    pub dem_dir: PathBuf,
+
+    /// The area as minLon,minLat,maxLon,maxLat: buildings are cut at its border, as `/scene`
+    /// does. Default: every building whole, on the ground of their extent.
+    #[arg(long)]
+    pub bbox: Option<String>,
+
+    /// The GLB file to write.
+    #[arg(long, short)]
+    pub out: PathBuf,
+
+    /// How the GLB stores vertices: plain, quantized or meshopt.
+    #[arg(long, value_enum, default_value_t = EncodingArg::Plain)]
+    pub encoding: EncodingArg,
+
+    /// Also write the scene's figures (buildings, roofs, ground, bytes, timings) as JSON here.
+    #[arg(long)]
+    pub stats: Option<PathBuf>,
+}
+
+/// `--encoding` of `citymesh scene`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum EncodingArg {
+    Plain,
+    Quantized,
+    Meshopt,
+}
+
+impl From<EncodingArg> for citymesh_core::mesh::Encoding {
+    fn from(e: EncodingArg) -> Self {
+        match e {
+            EncodingArg::Plain => Self::Plain,
+            EncodingArg::Quantized => Self::Quantized,
+            EncodingArg::Meshopt => Self::Meshopt,
+        }
+    }
 }
 
 /// Options of `citymesh import`.

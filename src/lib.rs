@@ -21,6 +21,7 @@ pub mod jobs;
 pub mod metrics;
 pub mod pipeline;
 pub mod routes;
+pub mod scene_file;
 pub mod server;
 pub mod source;
 pub mod state;

@@ -17,6 +17,16 @@ async fn main() -> anyhow::Result<()> {
             println!("{}", citymesh::routes::openapi_json());
             Ok(())
         }
+        Command::Scene(args) => {
+            let report =
+                tokio::task::spawn_blocking(move || citymesh::scene_file::export_scene(&args))
+                    .await??;
+            eprintln!(
+                "{} buildings ({} skipped), {} bytes, generated in {:.1} ms",
+                report.buildings, report.skipped, report.bytes, report.generation_ms
+            );
+            Ok(())
+        }
         Command::Import(args) => {
             let report = citymesh::import::import(&args.files, &args.cache_db, args.quiet).await?;
             println!(

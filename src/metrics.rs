@@ -55,6 +55,8 @@ pub struct Metrics {
     pub cache: Family<CacheLabels, Counter>,
     pub upstream: Family<UpstreamLabels, Counter>,
     pub generations: Counter,
+    /// Generated tiles whose write to SQLite failed (served all the same).
+    pub tile_store_failures: Counter,
     pub generation_seconds: Histogram,
     /// Roof jobs by state (set after each worker round and each new batch).
     pub roof_jobs: Family<StateLabels, prometheus_client::metrics::gauge::Gauge>,
@@ -80,6 +82,7 @@ impl Default for Metrics {
         let cache = Family::<CacheLabels, Counter>::default();
         let upstream = Family::<UpstreamLabels, Counter>::default();
         let generations = Counter::default();
+        let tile_store_failures = Counter::default();
         let generation_seconds = Histogram::new(latency_buckets());
         let roof_jobs = Family::default();
         let imagery_fetches = Family::<ResultLabels, Counter>::default();
@@ -121,6 +124,11 @@ impl Default for Metrics {
         );
         registry.register("generations", "Meshes generated", generations.clone());
         registry.register(
+            "tile_store_write_failures",
+            "Generated tiles not written to the SQLite cache (served all the same)",
+            tile_store_failures.clone(),
+        );
+        registry.register(
             "generation_duration_seconds",
             "Time to generate a mesh and its GLB",
             generation_seconds.clone(),
@@ -132,6 +140,7 @@ impl Default for Metrics {
             cache,
             upstream,
             generations,
+            tile_store_failures,
             generation_seconds,
             roof_jobs,
             imagery_fetches,

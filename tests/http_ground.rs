@@ -81,7 +81,9 @@ async fn tiles_are_cached_in_sqlite_across_restarts() {
         assert_eq!(a.body, b.body);
         a.body
     };
-    // A new server on the same database: served from SQLite, byte for byte.
+    // A new server on the same database (once the first one's writes landed, as at its
+    // shutdown): served from SQLite, byte for byte.
+    common::settle_writes().await;
     let app = app_with(&dem_dir(), &db_file, &[]).await;
     let again = get(&app, uri).await;
     assert_eq!(again.header("x-citymesh-cache"), "sqlite");

@@ -293,6 +293,7 @@ async fn after_a_restart_stored_data_is_not_asked_for_again() {
     assert_eq!(stub.count(), 1);
     // A new server on the same database: the tile from SQLite, and a neighbour tile of the same
     // data tile generated from the stored data, with no upstream request at all.
+    common::settle_writes().await;
     let app = online_app(&file, &url).await;
     let again = get(&app, TILE).await;
     assert_eq!(again.header("x-citymesh-cache"), "sqlite");
@@ -446,6 +447,7 @@ async fn an_import_that_changes_data_drops_exactly_the_tiles_over_it() {
             "miss"
         );
     }
+    common::settle_writes().await;
     // The same data again changes nothing.
     let again = import(pbf).await;
     assert_eq!((again.changed_data_tiles, again.tiles_invalidated), (0, 0));

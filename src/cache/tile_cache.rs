@@ -10,6 +10,7 @@ use citymesh_core::geo::GeoBbox;
 use std::future::Future;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU8, AtomicU64, Ordering};
+use tokio_util::task::TaskTracker;
 
 /// A tile ready to send: its bytes and their strong ETag (quoted).
 #[derive(Clone, Debug)]
@@ -52,11 +53,13 @@ pub struct TileCache {
     store: TileStore,
     /// Everything the bytes depend on besides the key and the OSM data tiles (which invalidate
     /// explicitly): generator version, DEM files, local OSM files.
-    data_version: String,
+    data_version: Arc<str>,
     metrics: Arc<Metrics>,
     /// Counts invalidations: a tile whose generation saw the count change may have been built
     /// from data that changed meanwhile, so it is served but not kept.
-    epoch: AtomicU64,
+    epoch: Arc<AtomicU64>,
+    /// Writes of generated tiles to SQLite, which run after the response left.
+    writes: TaskTracker,
 }
 
 impl TileCache {
@@ -77,10 +80,46 @@ impl TileCache {
         Self {
             memory,
             store,
-            data_version,
+            data_version: Arc::from(data_version),
             metrics,
-            epoch: AtomicU64::new(0),
+            epoch: Arc::new(AtomicU64::new(0)),
+            writes: TaskTracker::new(),
         }
+    }
+
+    /// Waits until every write of a generated tile to SQLite has finished (at shutdown, and
+    /// for callers that open the database next).
+    pub async fn flush(&self) {
+        self.writes.close();
+        self.writes.wait().await;
+        self.writes.reopen();
+    }
+
+    /// Writes a generated tile to SQLite after its response: a failed write is logged and
+    /// counted, never a failed response. Not kept when the data changed since generation began.
+    fn write_behind(&self, key: TileKey, bytes: Bytes, etag: String, epoch: u64) {
+        let store = self.store.clone();
+        let version = self.data_version.clone();
+        let current = self.epoch.clone();
+        let metrics = self.metrics.clone();
+        self.writes.spawn(async move {
+            if current.load(Ordering::SeqCst) != epoch {
+                return;
+            }
+            match store.put(&key, &version, &bytes, &etag).await {
+                Err(e) => {
+                    metrics.tile_store_failures.inc();
+                    tracing::warn!(error = %e, tile = ?key.tile, "generated tile not stored in SQLite (served all the same)");
+                }
+                // An invalidation ran while the row was written: it may not outlive it.
+                Ok(()) if current.load(Ordering::SeqCst) != epoch => {
+                    if let Err(e) = store.remove(&key, &version).await {
+                        tracing::warn!(error = %e, "outdated tile not removed from SQLite");
+                    }
+                }
+                Ok(()) => {}
+            }
+        });
     }
 
     /// The tile from memory, else SQLite, else `generate` (run once however many ask at once).
@@ -122,9 +161,8 @@ impl TileCache {
                 let (bytes, stats) = generate().await?;
                 let etag = etag_of(&bytes);
                 if self.epoch.load(Ordering::SeqCst) == epoch {
-                    self.store
-                        .put(&key, &self.data_version, &bytes, &etag)
-                        .await?;
+                    // Respond first: the row is written after.
+                    self.write_behind(key, bytes.clone(), etag.clone(), epoch);
                 } else {
                     outdated.store(true, Ordering::SeqCst);
                 }

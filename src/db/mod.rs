@@ -3,7 +3,7 @@
 //! `crate::cache` (`cache/store.rs`), OSM data tiles in `crate::source::data_tiles`.
 
 use sqlx::SqlitePool;
-use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions};
+use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, SqliteSynchronous};
 use std::str::FromStr;
 
 /// Opens (creating if needed) the database at `location` (a file path, or `:memory:`) and applies
@@ -41,6 +41,10 @@ pub async fn open(location: &str) -> anyhow::Result<SqlitePool> {
             .filename(location)
             .create_if_missing(true)
             .journal_mode(SqliteJournalMode::Wal)
+            // With WAL, NORMAL syncs at checkpoints, not at every commit: a commit survives the
+            // process crashing (it is in the WAL file); only a power cut can lose the last few.
+            // The database is a cache and a job queue whose jobs are retried, so that is fine.
+            .synchronous(SqliteSynchronous::Normal)
     };
     // An in-memory database exists once per connection: keep exactly one.
     let pool = SqlitePoolOptions::new()

@@ -268,6 +268,7 @@ pub async fn run(args: ServeArgs) -> anyhow::Result<()> {
         header_timeout: Duration::from_secs_f64(args.header_timeout_s),
         idle_timeout: Duration::from_secs_f64(args.idle_timeout_s),
     };
+    let tiles = state.tiles.clone();
     connections::serve(
         listener,
         crate::routes::app(state),
@@ -275,6 +276,8 @@ pub async fn run(args: ServeArgs) -> anyhow::Result<()> {
         shutdown_signal(),
     )
     .await;
+    // Tiles generated last are written to SQLite after their responses: finish those writes.
+    tiles.flush().await;
     for w in workers {
         w.abort();
     }

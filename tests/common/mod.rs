@@ -65,7 +65,25 @@ pub async fn app_with(dem: &Path, db: &Path, extra: &[&str]) -> axum::Router {
     }
     argv.extend_from_slice(extra);
     let args = ServeArgs::parse_from(argv);
-    citymesh::app(citymesh::server::build_state(&args).await.unwrap())
+    let state = citymesh::server::build_state(&args).await.unwrap();
+    if let Ok(mut caches) = CACHES.lock() {
+        caches.push(state.tiles.clone());
+    }
+    citymesh::app(state)
+}
+
+/// The tile caches of the apps this test binary made.
+static CACHES: std::sync::Mutex<Vec<std::sync::Arc<citymesh::cache::TileCache>>> =
+    std::sync::Mutex::new(Vec::new());
+
+/// Waits until every generated tile of the apps made so far is written to SQLite (tiles are
+/// written after their response), as a server does at shutdown: call it before opening the same
+/// database again.
+pub async fn settle_writes() {
+    let caches: Vec<_> = CACHES.lock().map(|c| c.clone()).unwrap_or_default();
+    for c in caches {
+        c.flush().await;
+    }
 }
 
 pub struct Answer {

@@ -69,6 +69,20 @@ fn kirchfeld(c: &mut Criterion) {
     };
     c.bench_function("kirchfeld_scene_to_glb", |b| b.iter(|| build().to_glb()));
     c.bench_function("kirchfeld_scene_mesh_only", |b| b.iter(build));
+    // The same scene with its groups shared among two threads (as `citymesh scene` does).
+    c.bench_function("kirchfeld_scene_to_glb_2_workers", |b| {
+        b.iter(|| {
+            Scene::new_with_workers(
+                black_box(&model),
+                black_box(&bbox),
+                black_box(&groups),
+                Border::Whole,
+                &|| false,
+                2,
+            )
+            .map(|s| s.to_glb())
+        });
+    });
     for encoding in Encoding::ALL {
         c.bench_function(&format!("kirchfeld_encode_{encoding}"), |b| {
             b.iter(|| scene.encode(Placement::LocalEnu, black_box(encoding)).bytes);

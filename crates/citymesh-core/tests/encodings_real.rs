@@ -40,3 +40,26 @@ fn kirchfeld_bytes_per_building_meet_the_goals() {
     assert!(meshopt <= 350, "meshopt: {meshopt} B per building");
     assert!(meshopt < quantized && quantized < plain);
 }
+
+#[test]
+fn groups_built_on_several_threads_make_the_same_scene() {
+    let m = model(&["N49E008.hgt"]);
+    let set = BuildingSet::new(
+        read_buildings(&osm_bytes("karlsruhe-kirchfeld.osm.pbf"))
+            .unwrap()
+            .buildings,
+    );
+    let bbox = set.extent().unwrap();
+    let groups = set.groups();
+    let serial = Scene::new(&m, &bbox, &groups, Border::Whole);
+    for workers in [2, 3, 8] {
+        let parallel =
+            Scene::new_with_workers(&m, &bbox, &groups, Border::Whole, &|| false, workers).unwrap();
+        assert_eq!(parallel.mesh, serial.mesh, "{workers} workers");
+        assert_eq!(parallel.buildings, serial.buildings);
+        assert_eq!(parallel.cluster_triangles, serial.cluster_triangles);
+        assert_eq!(parallel.to_glb(), serial.to_glb());
+    }
+    // A stop asked for ends every thread's run: no scene.
+    assert!(Scene::new_with_workers(&m, &bbox, &groups, Border::Whole, &|| true, 2).is_none());
+}

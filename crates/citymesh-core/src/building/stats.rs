@@ -70,6 +70,51 @@ impl BuildingStats {
         }
     }
 
+    /// Adds the figures of `other`, counted after these (lists keep their order).
+    pub fn absorb(&mut self, other: BuildingStats) {
+        // Every field named, so a new one cannot be forgotten here.
+        let BuildingStats {
+            generated,
+            parts,
+            skipped,
+            skipped_ids,
+            roof_shapes,
+            shape_from_tag,
+            shape_default,
+            shape_unsupported,
+            height_from_tag,
+            height_from_levels,
+            height_default,
+            invalid_tags,
+            outlines_covered_by_parts,
+            shared_walls,
+            dropped_constraints,
+            repaired_ids,
+            generated_ids,
+        } = other;
+        self.generated += generated;
+        self.parts += parts;
+        for (k, v) in skipped {
+            *self.skipped.entry(k).or_default() += v;
+        }
+        self.skipped_ids.extend(skipped_ids);
+        for (k, v) in roof_shapes {
+            *self.roof_shapes.entry(k).or_default() += v;
+        }
+        self.shape_from_tag += shape_from_tag;
+        self.shape_default += shape_default;
+        self.shape_unsupported += shape_unsupported;
+        self.height_from_tag += height_from_tag;
+        self.height_from_levels += height_from_levels;
+        self.height_default += height_default;
+        self.invalid_tags += invalid_tags;
+        self.outlines_covered_by_parts += outlines_covered_by_parts;
+        self.shared_walls += shared_walls;
+        self.dropped_constraints += dropped_constraints;
+        self.repaired_ids.extend(repaired_ids);
+        self.generated_ids.extend(generated_ids);
+    }
+
     /// Roofs counted, of any shape.
     pub fn roofs(&self) -> usize {
         self.roof_shapes.values().sum()

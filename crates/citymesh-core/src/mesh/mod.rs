@@ -86,6 +86,24 @@ impl Mesh {
         self.styles.push(style);
     }
 
+    /// Room for the vertices and triangles of `parts` besides what is there.
+    pub fn reserve_for<'a>(&mut self, parts: impl Iterator<Item = &'a Mesh> + Clone) {
+        self.positions
+            .reserve(parts.clone().map(|m| m.positions.len()).sum());
+        self.triangles
+            .reserve(parts.clone().map(|m| m.triangles.len()).sum());
+        self.styles.reserve(parts.map(|m| m.styles.len()).sum());
+    }
+
+    /// Appends `other`'s vertices and triangles (its indices moved past this mesh's vertices).
+    pub fn append(&mut self, other: &Mesh) {
+        let offset = self.positions.len() as u32;
+        self.positions.extend_from_slice(&other.positions);
+        self.triangles
+            .extend(other.triangles.iter().map(|t| t.map(|i| i + offset)));
+        self.styles.extend_from_slice(&other.styles);
+    }
+
     /// The triangle's corner positions.
     #[inline]
     pub fn corners(&self, t: [u32; 3]) -> [[f64; 3]; 3] {

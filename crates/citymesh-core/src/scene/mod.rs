@@ -50,7 +50,7 @@ impl Scene {
         clusters: &[Vec<&BuildingRecord>],
         border: Border,
     ) -> Self {
-        Self::build(model, bbox, clusters, border, &|| false).0
+        Self::build(model, bbox, clusters, border, &|| false, 1).0
     }
 
     /// Like [`Scene::new`], but asks `stop` before each group of buildings and gives up (`None`)
@@ -60,9 +60,24 @@ impl Scene {
         bbox: &GeoBbox,
         clusters: &[Vec<&BuildingRecord>],
         border: Border,
-        stop: &dyn Fn() -> bool,
+        stop: &(dyn Fn() -> bool + Sync),
     ) -> Option<Self> {
-        let (scene, complete) = Self::build(model, bbox, clusters, border, stop);
+        let (scene, complete) = Self::build(model, bbox, clusters, border, stop, 1);
+        complete.then_some(scene)
+    }
+
+    /// Like [`Scene::new_until`], with the groups of buildings shared among `workers` threads
+    /// (scoped, so the call stays synchronous). The result is the same, byte for byte: each
+    /// thread builds a contiguous run of groups and the runs are joined in order.
+    pub fn new_with_workers(
+        model: &ElevationModel,
+        bbox: &GeoBbox,
+        clusters: &[Vec<&BuildingRecord>],
+        border: Border,
+        stop: &(dyn Fn() -> bool + Sync),
+        workers: usize,
+    ) -> Option<Self> {
+        let (scene, complete) = Self::build(model, bbox, clusters, border, stop, workers);
         complete.then_some(scene)
     }
 
@@ -72,40 +87,61 @@ impl Scene {
         bbox: &GeoBbox,
         clusters: &[Vec<&BuildingRecord>],
         border: Border,
-        stop: &dyn Fn() -> bool,
+        stop: &(dyn Fn() -> bool + Sync),
+        workers: usize,
     ) -> (Self, bool) {
         let (lon, lat) = bbox.center();
         let frame = LocalFrame::new(lon, lat, 0.0);
         let mut mesh = Mesh::default();
         let ground = build_ground(model, bbox, &frame, &mut mesh);
-        // Buildings make about 5 vertices and 4 triangles per outline node: reserving that
-        // once spares the copies of a growing mesh.
-        let nodes: usize = clusters
-            .iter()
-            .flatten()
-            .flat_map(|b| b.outers.iter().chain(&b.inners))
-            .map(|ring| ring.nodes.len())
-            .sum();
-        mesh.positions.reserve(nodes * 5);
-        mesh.triangles.reserve(nodes * 4);
-        mesh.styles.reserve(nodes * 4);
         let ctx = BuildingContext {
             frame: &frame,
             elevation: model,
             clip: (border == Border::Truncate).then_some(*bbox),
         };
-        let mut buildings = BuildingStats::default();
-        let mut cluster_triangles = Vec::with_capacity(clusters.len());
-        let mut complete = true;
-        for cluster in clusters {
-            if stop() {
-                complete = false;
-                break;
+        let runs = split_runs(clusters, workers);
+        let (buildings, cluster_triangles, complete) = if runs.len() <= 1 {
+            let built = build_groups(clusters, &ctx, stop, &mut mesh);
+            (built.buildings, built.cluster_triangles, built.complete)
+        } else {
+            let parts: Vec<(Mesh, GroupsBuilt)> = std::thread::scope(|scope| {
+                let ctx = &ctx;
+                let handles: Vec<_> = runs
+                    .iter()
+                    .map(|run| {
+                        scope.spawn(move || {
+                            let mut part = Mesh::default();
+                            let built = build_groups(&clusters[run.clone()], ctx, stop, &mut part);
+                            (part, built)
+                        })
+                    })
+                    .collect();
+                handles
+                    .into_iter()
+                    .map(|h| {
+                        h.join()
+                            .unwrap_or_else(|_| (Mesh::default(), GroupsBuilt::incomplete()))
+                    })
+                    .collect()
+            });
+            mesh.reserve_for(parts.iter().map(|(m, _)| m));
+            let mut buildings = BuildingStats::default();
+            let mut cluster_triangles = Vec::with_capacity(clusters.len());
+            let mut complete = true;
+            for (part, built) in parts {
+                let offset = mesh.triangles.len();
+                cluster_triangles.extend(
+                    built
+                        .cluster_triangles
+                        .into_iter()
+                        .map(|r| r.start + offset..r.end + offset),
+                );
+                mesh.append(&part);
+                buildings.absorb(built.buildings);
+                complete &= built.complete;
             }
-            let start = mesh.triangles.len();
-            generate_cluster(cluster, &ctx, &mut mesh, &mut buildings);
-            cluster_triangles.push(start..mesh.triangles.len());
-        }
+            (buildings, cluster_triangles, complete)
+        };
         let scene = Self {
             frame,
             mesh,
@@ -132,4 +168,87 @@ impl Scene {
     pub fn to_glb(&self) -> Vec<u8> {
         self.encode(Placement::LocalEnu, Encoding::Plain).bytes
     }
+}
+
+/// What building a run of groups gave besides the mesh: figures and triangle ranges.
+struct GroupsBuilt {
+    buildings: BuildingStats,
+    cluster_triangles: Vec<Range<usize>>,
+    complete: bool,
+}
+
+impl GroupsBuilt {
+    fn incomplete() -> Self {
+        Self {
+            buildings: BuildingStats::default(),
+            cluster_triangles: Vec::new(),
+            complete: false,
+        }
+    }
+}
+
+/// Builds `clusters` in order into `mesh`, asking `stop` before each.
+fn build_groups(
+    clusters: &[Vec<&BuildingRecord>],
+    ctx: &BuildingContext<'_>,
+    stop: &(dyn Fn() -> bool + Sync),
+    mesh: &mut Mesh,
+) -> GroupsBuilt {
+    // Buildings make about 5 vertices and 4 triangles per outline node: reserving that once
+    // spares the copies of a growing mesh.
+    let nodes = outline_nodes(clusters);
+    mesh.positions.reserve(nodes * 5);
+    mesh.triangles.reserve(nodes * 4);
+    mesh.styles.reserve(nodes * 4);
+    let mut buildings = BuildingStats::default();
+    let mut cluster_triangles = Vec::with_capacity(clusters.len());
+    for cluster in clusters {
+        if stop() {
+            return GroupsBuilt {
+                buildings,
+                cluster_triangles,
+                complete: false,
+            };
+        }
+        let start = mesh.triangles.len();
+        generate_cluster(cluster, ctx, mesh, &mut buildings);
+        cluster_triangles.push(start..mesh.triangles.len());
+    }
+    GroupsBuilt {
+        buildings,
+        cluster_triangles,
+        complete: true,
+    }
+}
+
+fn outline_nodes(clusters: &[Vec<&BuildingRecord>]) -> usize {
+    clusters
+        .iter()
+        .flatten()
+        .flat_map(|b| b.outers.iter().chain(&b.inners))
+        .map(|ring| ring.nodes.len())
+        .sum()
+}
+
+/// Contiguous runs of groups with about the same number of outline nodes, one per worker (fewer
+/// when there is little to share: a run under 2,000 nodes is not worth a thread).
+fn split_runs(clusters: &[Vec<&BuildingRecord>], workers: usize) -> Vec<Range<usize>> {
+    const MIN_NODES_PER_RUN: usize = 2_000;
+    let total = outline_nodes(clusters);
+    let runs = workers.clamp(1, (total / MIN_NODES_PER_RUN).max(1));
+    if runs <= 1 {
+        return std::iter::once(0..clusters.len()).collect();
+    }
+    let per_run = total.div_ceil(runs);
+    let mut out = Vec::with_capacity(runs);
+    let (mut start, mut acc) = (0, 0);
+    for (i, c) in clusters.iter().enumerate() {
+        acc += outline_nodes(std::slice::from_ref(c));
+        if acc >= per_run * (out.len() + 1) && out.len() + 1 < runs {
+            out.push(start..i + 1);
+            start = i + 1;
+        }
+    }
+    out.push(start..clusters.len());
+    out
 }

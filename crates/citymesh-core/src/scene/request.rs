@@ -73,6 +73,7 @@ impl SceneArea {
             placement: self.placement(),
             encoding: Encoding::default(),
             roofs: None,
+            workers: 1,
         })
     }
 }
@@ -91,6 +92,9 @@ pub struct SceneRequest<'a> {
     pub encoding: Encoding,
     /// Roof shapes for records without a `roof:shape` tag (none: tags and defaults only).
     pub roofs: Option<&'a RoofChoice>,
+    /// Threads the groups of buildings are shared among (1: the calling thread only). The
+    /// output does not depend on it.
+    pub workers: usize,
 }
 
 /// A generated, encoded scene and what went into it.
@@ -115,6 +119,14 @@ impl<'a> SceneRequest<'a> {
     pub fn with_roofs(self, roofs: &'a RoofChoice) -> Self {
         Self {
             roofs: Some(roofs),
+            ..self
+        }
+    }
+
+    /// The same request built on up to `workers` threads.
+    pub fn with_workers(self, workers: usize) -> Self {
+        Self {
+            workers: workers.max(1),
             ..self
         }
     }
@@ -149,7 +161,17 @@ impl<'a> SceneRequest<'a> {
     /// The scene over `model`, encoded.
     pub fn generate(&self, model: &ElevationModel) -> SceneOutput {
         let records = self.group_records();
-        let scene = Scene::new(model, &self.bbox, &as_refs(&records), self.border);
+        let never = || false;
+        let scene = Scene::new_with_workers(
+            model,
+            &self.bbox,
+            &as_refs(&records),
+            self.border,
+            &never,
+            self.workers,
+        );
+        let scene =
+            scene.unwrap_or_else(|| Scene::new(model, &self.bbox, &as_refs(&records), self.border));
         Self::output(scene, self.placement, self.encoding, &records)
     }
 
@@ -158,10 +180,17 @@ impl<'a> SceneRequest<'a> {
     pub fn generate_until(
         &self,
         model: &ElevationModel,
-        stop: &dyn Fn() -> bool,
+        stop: &(dyn Fn() -> bool + Sync),
     ) -> Option<SceneOutput> {
         let records = self.group_records();
-        let scene = Scene::new_until(model, &self.bbox, &as_refs(&records), self.border, stop)?;
+        let scene = Scene::new_with_workers(
+            model,
+            &self.bbox,
+            &as_refs(&records),
+            self.border,
+            stop,
+            self.workers,
+        )?;
         (!stop()).then(|| Self::output(scene, self.placement, self.encoding, &records))
     }
 
@@ -243,14 +272,11 @@ mod tests {
         let model = ElevationModel::default();
         assert!(request.generate_until(&model, &|| true).is_none());
         // Asked once per group (and once before encoding): stopping half way gives nothing.
-        let asked = std::cell::Cell::new(0);
+        let asked = std::sync::atomic::AtomicUsize::new(0);
         let half = request.groups.len() / 2;
-        let stop = || {
-            asked.set(asked.get() + 1);
-            asked.get() > half
-        };
+        let stop = || asked.fetch_add(1, std::sync::atomic::Ordering::SeqCst) + 1 > half;
         assert!(request.generate_until(&model, &stop).is_none());
-        assert_eq!(asked.get(), half + 1);
+        assert_eq!(asked.load(std::sync::atomic::Ordering::SeqCst), half + 1);
         let whole = request.generate_until(&model, &|| false).unwrap();
         assert_eq!(whole.glb, request.generate(&model).glb);
     }

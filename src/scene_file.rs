@@ -1,0 +1,94 @@
+//! `citymesh scene`: one scene from OSM and SRTM files into a GLB file, as a batch command (what
+//! OSM2World's and ilu's command lines do), with the figures `/scene/stats` gives as JSON.
+
+use crate::cli::SceneArgs;
+use crate::dem::DemStore;
+use crate::source::read_osm_file;
+use anyhow::Context;
+use citymesh_core::building::set::BuildingSet;
+use citymesh_core::geo::GeoBbox;
+use citymesh_core::osm::read_buildings;
+use citymesh_core::scene::SceneArea;
+use serde_json::json;
+use std::time::Instant;
+
+/// What `citymesh scene` made.
+#[derive(Debug, Clone)]
+pub struct SceneReport {
+    pub buildings: usize,
+    pub skipped: usize,
+    pub bytes: usize,
+    pub generation_ms: f64,
+}
+
+/// Reads the files, generates the scene and writes the GLB (and the figures, with `--stats`).
+/// Blocking: the whole command is one scene.
+pub fn export_scene(args: &SceneArgs) -> anyhow::Result<SceneReport> {
+    let started = Instant::now();
+    let mut records = Vec::new();
+    let mut load_skipped = 0;
+    for path in &args.osm {
+        let bytes = read_osm_file(path)?;
+        let osm = read_buildings(&bytes).with_context(|| format!("reading {}", path.display()))?;
+        load_skipped += osm.skipped.len();
+        records.extend(osm.buildings);
+    }
+    let set = BuildingSet::new(records);
+    // With a box: the scene of `/scene?bbox=`, buildings cut at its border. Without: every
+    // building whole, on the ground of their extent.
+    let area = match &args.bbox {
+        Some(text) => SceneArea::Bbox(
+            text.parse::<GeoBbox>()
+                .map_err(|e| anyhow::anyhow!("--bbox {text}: {e}"))?,
+        ),
+        None => SceneArea::Given(
+            set.extent()
+                .context("the OSM files hold no building: nothing to make")?,
+        ),
+    };
+    let request = area
+        .request(&set)
+        .map_err(|e| anyhow::anyhow!("{e}"))?
+        .with_encoding(args.encoding.into())
+        // One scene and nothing else to do: every core may build groups.
+        .with_workers(std::thread::available_parallelism().map_or(1, usize::from));
+    let dem = DemStore::open(&args.dem_dir, 1 << 30);
+    let lookup = dem.lookup(&request.terrain_bbox());
+    if !lookup.missing.is_empty() {
+        tracing::warn!(missing = ?lookup.missing, "SRTM files missing: the ground there is flat at 0 m");
+    }
+    let generating = Instant::now();
+    let output = request.generate(&lookup.model);
+    let generation_ms = generating.elapsed().as_secs_f64() * 1000.0;
+    std::fs::write(&args.out, &output.glb.bytes)
+        .with_context(|| format!("writing {}", args.out.display()))?;
+    let report = SceneReport {
+        buildings: output.buildings.generated,
+        skipped: output.buildings.total_skipped() + load_skipped,
+        bytes: output.glb.bytes.len(),
+        generation_ms,
+    };
+    if let Some(path) = &args.stats {
+        let stats = json!({
+            "encoding": args.encoding,
+            "bytes": report.bytes,
+            "vertices": output.glb.vertices,
+            "triangles": output.glb.triangles,
+            "generation_ms": generation_ms,
+            "total_ms": started.elapsed().as_secs_f64() * 1000.0,
+            "ground": {
+                "cells": output.ground.cells,
+                "void_cells": output.ground.void_cells,
+                "missing_samples": output.ground.missing_samples,
+                "triangles": output.ground.triangles,
+            },
+            "missing_dem": lookup.missing,
+            "buildings": output.buildings,
+            "skipped_when_reading": load_skipped,
+            "flat_roof_percent": output.buildings.flat_roof_percent(),
+        });
+        std::fs::write(path, serde_json::to_vec_pretty(&stats)?)
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(report)
+}

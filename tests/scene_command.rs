@@ -1,0 +1,93 @@
+//! `citymesh scene`, the batch export: the Karlsruhe-Kirchfeld Overpass JSON and its SRTM file
+//! into a GLB on disk, with the figures as JSON; and clear failures for bad input.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
+
+mod common;
+
+use common::{assert_valid_glb, data_dir, dem_dir};
+use std::process::Command;
+
+fn scene(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_citymesh"))
+        .arg("scene")
+        .args(args)
+        .env("RUST_BACKTRACE", "0")
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn exports_the_whole_scene_and_its_figures() {
+    let dir = tempfile::tempdir().unwrap();
+    let osm = data_dir().join("osm/karlsruhe-kirchfeld.overpass.json");
+    let (glb, stats) = (dir.path().join("k.glb"), dir.path().join("k.json"));
+    let out = scene(&[
+        "--osm",
+        osm.to_str().unwrap(),
+        "--dem-dir",
+        dem_dir().to_str().unwrap(),
+        "-o",
+        glb.to_str().unwrap(),
+        "--encoding",
+        "meshopt",
+        "--stats",
+        stats.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let bytes = std::fs::read(&glb).unwrap();
+    assert_valid_glb(&bytes);
+    assert_valid_glb(&common::decode::decode_meshopt(&bytes));
+    let figures: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&stats).unwrap()).unwrap();
+    // Every building and part of the file, whole (no box given).
+    assert_eq!(figures["buildings"]["generated"], 3019);
+    assert_eq!(figures["bytes"], bytes.len());
+    assert_eq!(figures["encoding"], "meshopt");
+    assert_eq!(figures["missing_dem"], serde_json::json!([]));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("3019 buildings"));
+
+    // The same scene as the server's /scene for a box: buildings cut at the border.
+    let boxed = dir.path().join("box.glb");
+    let out = scene(&[
+        "--osm",
+        osm.to_str().unwrap(),
+        "--dem-dir",
+        dem_dir().to_str().unwrap(),
+        "--bbox",
+        "8.392,49.046,8.401,49.053",
+        "-o",
+        boxed.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_valid_glb(&std::fs::read(&boxed).unwrap());
+}
+
+#[test]
+fn bad_input_fails_with_a_message_and_no_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let osm = data_dir().join("osm/karlsruhe-kirchfeld.overpass.json");
+    let glb = dir.path().join("x.glb");
+    for (args, says) in [
+        (vec!["--osm", "/nonexistent.osm.pbf"], "nonexistent"),
+        (
+            vec!["--osm", osm.to_str().unwrap(), "--bbox", "8,49,7,50"],
+            "--bbox",
+        ),
+    ] {
+        let mut all = args.clone();
+        all.extend(["-o", glb.to_str().unwrap()]);
+        let out = scene(&all);
+        assert!(!out.status.success());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(says), "{err}");
+        assert!(!glb.exists());
+    }
+}
