@@ -52,9 +52,9 @@ class RoofNet(nn.Module):
             *block(4, c1), nn.MaxPool2d(2),                    # 32
             *block(c1, c2), *block(c2, c2), nn.MaxPool2d(2),   # 16
             *block(c2, c3), *block(c3, c3), nn.MaxPool2d(2),   # 8
-            *block(c3, c4), *block(c4, c4),
+            *block(c3, c4),
         )
-        self.head = nn.Sequential(nn.Dropout(0.2), nn.Linear(c4, 3))
+        self.head = nn.Sequential(nn.Dropout(0.3), nn.Linear(c4, 3))
         self.register_buffer("mean", torch.tensor([0.45, 0.45, 0.45, 0.5]).view(1, 4, 1, 1))
         self.register_buffer("scale", torch.tensor([0.25, 0.25, 0.25, 0.5]).view(1, 4, 1, 1))
 
@@ -127,7 +127,7 @@ def main():
     ap.add_argument("--out", required=True, help="the .onnx file to write")
     ap.add_argument("--metrics", required=True, help="a JSON file for the model card")
     ap.add_argument("--seed", type=int, default=20261127)
-    ap.add_argument("--epochs", type=int, default=30)
+    ap.add_argument("--epochs", type=int, default=20)
     ap.add_argument("--batch", type=int, default=128)
     ap.add_argument("--threads", type=int, default=2)
     args = ap.parse_args()
