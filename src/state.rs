@@ -1,5 +1,6 @@
 //! Shared server state: the DEM store, the building source, the tile cache, the metrics and the
-//! limits, cheap to clone per request.
+//! limits, cheap to clone per request (one reference count: axum clones the state for every
+//! request, and many counts bumped from every core cost more than the rest of a cached tile).
 
 use crate::cache::TileCache;
 use crate::dem::DemStore;
@@ -25,8 +26,26 @@ pub struct Limits {
     pub body_timeout: Duration,
 }
 
+/// The state handlers see: a shared [`ServerState`].
 #[derive(Clone)]
-pub struct AppState {
+pub struct AppState(Arc<ServerState>);
+
+impl AppState {
+    pub fn new(state: ServerState) -> Self {
+        Self(Arc::new(state))
+    }
+}
+
+impl std::ops::Deref for AppState {
+    type Target = ServerState;
+
+    fn deref(&self) -> &ServerState {
+        &self.0
+    }
+}
+
+/// Everything the server shares between requests.
+pub struct ServerState {
     pub dem: Arc<DemStore>,
     pub source: Arc<dyn BuildingSource>,
     pub tiles: Arc<TileCache>,

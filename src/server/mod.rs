@@ -14,7 +14,7 @@ use crate::jobs::{RoofJobs, SqliteJobQueue};
 use crate::metrics::Metrics;
 use crate::source::data_tiles::OsmTileStore;
 use crate::source::{BuildingSource, DataTileSource, FileSource, load_osm_files};
-use crate::state::{AppState, Limits};
+use crate::state::{AppState, Limits, ServerState};
 use crate::upstream::{OverpassClient, OverpassConfig};
 use anyhow::Context;
 use citymesh_core::building::set::BuildingSet;
@@ -193,7 +193,7 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         imagery = %roofs.imagery_id,
         "roof predictions loaded"
     );
-    Ok(AppState {
+    Ok(AppState::new(ServerState {
         classifier,
         roofs,
         dem: Arc::new(dem),
@@ -217,7 +217,7 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
             request_timeout: Duration::from_secs_f64(args.request_timeout_s),
             body_timeout: Duration::from_secs_f64(args.body_timeout_s),
         },
-    })
+    }))
 }
 
 /// Runs `citymesh serve` until SIGINT or SIGTERM.
