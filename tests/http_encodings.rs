@@ -255,3 +255,28 @@ async fn the_accept_hint_chooses_the_encoding_and_each_encoding_is_cached_apart(
         "{body}"
     );
 }
+
+#[tokio::test]
+async fn box_scenes_and_their_figures_come_from_the_scene_cache() {
+    let db = tempfile::tempdir().unwrap();
+    let app = app(&db).await;
+    let bbox = "8.392,49.046,8.401,49.053";
+    let first = get(&app, &format!("/scene.glb?bbox={bbox}")).await;
+    assert_eq!(first.status, StatusCode::OK);
+    assert_eq!(first.header("x-citymesh-cache"), "miss");
+    let again = get(&app, &format!("/scene?bbox={bbox}")).await;
+    assert_eq!(again.header("x-citymesh-cache"), "hit");
+    assert_eq!(again.body, first.body);
+    assert_eq!(again.header("etag"), first.header("etag"));
+    // The figures are those of the one generation.
+    let stats = get(&app, &format!("/scene/stats?bbox={bbox}")).await.json();
+    let ms: f64 = first.header("x-citymesh-generation-ms").parse().unwrap();
+    assert!(
+        (stats["generation_ms"].as_f64().unwrap() - ms).abs() < 1e-3,
+        "{stats}"
+    );
+    // Another encoding is another entry.
+    let quantized = get(&app, &format!("/scene.glb?bbox={bbox}&encoding=quantized")).await;
+    assert_eq!(quantized.header("x-citymesh-cache"), "miss");
+    assert_ne!(quantized.body, first.body);
+}

@@ -119,6 +119,11 @@ impl TileKey {
         })
     }
 
+    /// A box scene (`/scene`), plain, roofs from tags.
+    pub fn bbox(b: GeoBbox) -> Self {
+        Self::new(TileId::Bbox(Region(b)))
+    }
+
     /// The same tile in `encoding`.
     pub fn with_encoding(self, encoding: Encoding) -> Self {
         Self { encoding, ..self }

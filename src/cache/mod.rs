@@ -1,14 +1,17 @@
 //! Generated content, cached twice: bytes in memory (moka, weighed in bytes) and in SQLite
 //! ([`store`], surviving restarts), under typed keys ([`key`]). Concurrent requests for the same
-//! tile share one lookup and one generation ([`tile_cache`]). Changed data invalidates exactly
+//! tile share one lookup and one generation ([`tile_cache`]). Box scenes are kept in memory
+//! with their figures ([`scene_cache`]). Changed data invalidates exactly
 //! the content over the changed area, in both levels ([`invalidation`]). Cached entries are plain
 //! bytes and an ETag string: HTTP types stay in `crate::routes`.
 
 pub mod invalidation;
 pub mod key;
+mod scene_cache;
 mod store;
 mod tile_cache;
 
 pub use key::{Encoding, Region, RoofSource, TileId, TileKey};
+pub use scene_cache::{CachedScene, SceneCache};
 pub use store::{StoredTile, TileStore};
 pub use tile_cache::{CacheLevel, CachedTile, TileCache, etag_of};

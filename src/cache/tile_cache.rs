@@ -2,6 +2,7 @@
 //! requests ask for the same tile at once.
 
 use super::key::TileKey;
+use super::scene_cache::SceneCache;
 use super::store::TileStore;
 use crate::generation_stats::GenerationStats;
 use crate::metrics::Metrics;
@@ -60,6 +61,8 @@ pub struct TileCache {
     epoch: Arc<AtomicU64>,
     /// Writes of generated tiles to SQLite, which run after the response left.
     writes: TaskTracker,
+    /// Box scenes, in memory; invalidated with the tiles.
+    pub scenes: SceneCache,
 }
 
 impl TileCache {
@@ -84,6 +87,8 @@ impl TileCache {
             metrics,
             epoch: Arc::new(AtomicU64::new(0)),
             writes: TaskTracker::new(),
+            // A quarter of the memory budget again for box scenes.
+            scenes: SceneCache::new(memory_bytes / 4),
         }
     }
 
@@ -209,6 +214,7 @@ impl TileCache {
     pub async fn invalidate_area(&self, area: &GeoBbox) -> Result<u64, sqlx::Error> {
         self.epoch.fetch_add(1, Ordering::SeqCst);
         let removed = self.store.delete_overlapping(area).await?;
+        self.scenes.invalidate_area(area);
         let area = *area;
         if let Err(e) = self
             .memory
@@ -223,6 +229,7 @@ impl TileCache {
     pub fn invalidate_memory(&self) {
         self.epoch.fetch_add(1, Ordering::SeqCst);
         self.memory.invalidate_all();
+        self.scenes.invalidate_all();
     }
 }
 

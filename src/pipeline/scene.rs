@@ -26,6 +26,8 @@ impl Drop for SetOnDrop {
 pub struct Generated {
     pub glb: Bytes,
     pub stats: GenerationStats,
+    /// Served from the scene cache (the figures are those of its generation).
+    pub from_cache: bool,
 }
 
 /// Whose buildings stand in the scene.
@@ -139,6 +141,7 @@ async fn generate_within(
         Ok(Generated {
             glb: Bytes::from(output.glb.bytes),
             stats,
+            from_cache: false,
         })
     })
     .await??;

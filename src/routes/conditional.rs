@@ -51,7 +51,11 @@ pub fn generated_response(
     cache_control: &'static str,
 ) -> Response {
     let etag = etag_of(&generated.glb);
-    let headers = glb_headers(Some(&generated.stats));
+    let mut headers = glb_headers(Some(&generated.stats));
+    headers.insert(
+        axum::http::HeaderName::from_static("x-citymesh-cache"),
+        HeaderValue::from_static(if generated.from_cache { "hit" } else { "miss" }),
+    );
     conditional_response(request, generated.glb, &etag, headers, cache_control)
 }
 

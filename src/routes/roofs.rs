@@ -65,7 +65,9 @@ pub async fn cached_tile(
     }
 }
 
-/// An uncached scene with roofs as asked, and the roof figures when classified.
+/// A scene with roofs as asked, and the roof figures when classified. Box scenes with roofs from
+/// tags come from the scene cache when they were made before (classified ones depend on
+/// predictions that keep arriving, and are made each time).
 pub async fn generate_with_roofs(
     state: &AppState,
     area: SceneArea,
@@ -73,10 +75,29 @@ pub async fn generate_with_roofs(
     encoding: Encoding,
 ) -> Result<(Generated, Option<RoofFigures>), AppError> {
     match roofs {
-        RoofsParam::Osm => Ok((
-            generate(state, area, Buildings::FromSource, None, encoding).await?,
-            None,
-        )),
+        RoofsParam::Osm => {
+            let SceneArea::Bbox(bbox) = area else {
+                return Ok((
+                    generate(state, area, Buildings::FromSource, None, encoding).await?,
+                    None,
+                ));
+            };
+            let key = TileKey::bbox(bbox).with_encoding(encoding);
+            let (scene, hit) = state
+                .tiles
+                .scenes
+                .get_or_generate(key, || async {
+                    let g = generate(state, area, Buildings::FromSource, None, encoding).await?;
+                    Ok::<_, AppError>((g.glb, g.stats))
+                })
+                .await?;
+            let generated = Generated {
+                glb: scene.glb,
+                stats: (*scene.stats).clone(),
+                from_cache: hit,
+            };
+            Ok((generated, None))
+        }
         RoofsParam::Classified => {
             let plan = classified_roofs(state, area).await?;
             let generated = generate(

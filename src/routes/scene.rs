@@ -133,7 +133,8 @@ async fn generate_box(
     responses(
         (status = 200, description = "The scene", content_type = "model/gltf-binary", body = inline(GlbBytes),
             headers(
-                ("X-Citymesh-Generation-Ms" = f64, description = "Generation time in milliseconds"),
+                ("X-Citymesh-Generation-Ms" = f64, description = "Generation time in milliseconds (of the generation that made it, when it came from the scene cache)"),
+                ("X-Citymesh-Cache" = String, description = "`hit` (box scenes with roofs from tags are kept in memory, shared with `/scene` and `/scene/stats`) or `miss`"),
                 ("X-Citymesh-Vertices" = u64, description = "Vertices in the file"),
                 ("X-Citymesh-Triangles" = u64, description = "Triangles in the file"),
                 ("X-Citymesh-Void-Cells" = u64, description = "Ground cells left empty by DEM voids"),
