@@ -9,18 +9,12 @@ use axum::http::StatusCode;
 use citymesh_core::building::set::BuildingSet;
 use citymesh_core::geo::{GeoBbox, ecef_to_geodetic, geodetic_to_ecef};
 use citymesh_core::osm::read_buildings;
-use common::{app_with, assert_valid_glb, data_dir, dem_dir, get, osm_bytes};
+use common::{assert_valid_glb, dem_dir, get, osm_bytes};
 use serde_json::Value;
 use std::collections::HashSet;
 
 async fn app(db: &tempfile::TempDir) -> axum::Router {
-    let file = data_dir().join("osm/karlsruhe-kirchfeld.osm.pbf");
-    app_with(
-        &dem_dir(),
-        &db.path().join("c.sqlite"),
-        &["--osm", file.to_str().unwrap()],
-    )
-    .await
+    common::kirchfeld_app(db).await
 }
 
 /// Morton index written out here, bit by bit (x in even bits, y in odd ones).

@@ -9,19 +9,13 @@ mod common;
 use axum::body::Body;
 use axum::http::{Request, StatusCode};
 use common::decode::{Triangle, chunks, decode_meshopt, triangles};
-use common::{app_with, data_dir, dem_dir, get, validate_glb};
+use common::{get, validate_glb};
 use http_body_util::BodyExt;
 use std::collections::HashMap;
 use tower::ServiceExt;
 
 async fn app(db: &tempfile::TempDir) -> axum::Router {
-    let file = data_dir().join("osm/karlsruhe-kirchfeld.osm.pbf");
-    app_with(
-        &dem_dir(),
-        &db.path().join("c.sqlite"),
-        &["--osm", file.to_str().unwrap()],
-    )
-    .await
+    common::kirchfeld_app(db).await
 }
 
 /// No error, warning or note at all.

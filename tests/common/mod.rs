@@ -72,6 +72,17 @@ pub async fn app_with(dem: &Path, db: &Path, extra: &[&str]) -> axum::Router {
     citymesh::app(state)
 }
 
+/// An app serving Karlsruhe-Kirchfeld from its PBF file, over a database in `db`.
+pub async fn kirchfeld_app(db: &tempfile::TempDir) -> axum::Router {
+    let file = data_dir().join("osm/karlsruhe-kirchfeld.osm.pbf");
+    app_with(
+        &dem_dir(),
+        &db.path().join("c.sqlite"),
+        &["--osm", file.to_str().unwrap()],
+    )
+    .await
+}
+
 /// The tile caches of the apps this test binary made.
 static CACHES: std::sync::Mutex<Vec<std::sync::Arc<citymesh::cache::TileCache>>> =
     std::sync::Mutex::new(Vec::new());

@@ -9,16 +9,22 @@ use citymesh_core::building::set::BuildingSet;
 use citymesh_core::mesh::{Encoding, Placement};
 use citymesh_core::osm::read_buildings;
 use citymesh_core::scene::{Border, Scene};
+use citymesh_core::terrain::ElevationModel;
 use common::{model, osm_bytes};
 
-#[test]
-fn kirchfeld_bytes_per_building_meet_the_goals() {
-    let m = model(&["N49E008.hgt"]);
+/// The Kirchfeld buildings and the ground model under them.
+fn kirchfeld() -> (BuildingSet, ElevationModel) {
     let set = BuildingSet::new(
         read_buildings(&osm_bytes("karlsruhe-kirchfeld.osm.pbf"))
             .unwrap()
             .buildings,
     );
+    (set, model(&["N49E008.hgt"]))
+}
+
+#[test]
+fn kirchfeld_bytes_per_building_meet_the_goals() {
+    let (set, m) = kirchfeld();
     let bbox = set.extent().unwrap();
     let scene = Scene::new(&m, &bbox, &set.groups(), Border::Whole);
     assert_eq!(scene.buildings.generated, 3019);
@@ -43,12 +49,7 @@ fn kirchfeld_bytes_per_building_meet_the_goals() {
 
 #[test]
 fn groups_built_on_several_threads_make_the_same_scene() {
-    let m = model(&["N49E008.hgt"]);
-    let set = BuildingSet::new(
-        read_buildings(&osm_bytes("karlsruhe-kirchfeld.osm.pbf"))
-            .unwrap()
-            .buildings,
-    );
+    let (set, m) = kirchfeld();
     let bbox = set.extent().unwrap();
     let groups = set.groups();
     let serial = Scene::new(&m, &bbox, &groups, Border::Whole);

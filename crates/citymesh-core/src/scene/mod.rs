@@ -54,21 +54,10 @@ impl Scene {
     }
 
     /// Like [`Scene::new`], but asks `stop` before each group of buildings and gives up (`None`)
-    /// when it says so: a caller whose client has gone stops paying for the rest.
-    pub fn new_until(
-        model: &ElevationModel,
-        bbox: &GeoBbox,
-        clusters: &[Vec<&BuildingRecord>],
-        border: Border,
-        stop: &(dyn Fn() -> bool + Sync),
-    ) -> Option<Self> {
-        let (scene, complete) = Self::build(model, bbox, clusters, border, stop, 1);
-        complete.then_some(scene)
-    }
-
-    /// Like [`Scene::new_until`], with the groups of buildings shared among `workers` threads
-    /// (scoped, so the call stays synchronous). The result is the same, byte for byte: each
-    /// thread builds a contiguous run of groups and the runs are joined in order.
+    /// when it says so (a caller whose client has gone stops paying for the rest), with the
+    /// groups shared among `workers` threads (scoped, so the call stays synchronous). The result
+    /// does not depend on `workers`, byte for byte: each thread builds a contiguous run of groups
+    /// and the runs are joined in order.
     pub fn new_with_workers(
         model: &ElevationModel,
         bbox: &GeoBbox,
