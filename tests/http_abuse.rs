@@ -31,7 +31,7 @@ async fn demo_app(db: &tempfile::TempDir, extra: &[&str]) -> axum::Router {
         .collect();
     use clap::Parser;
     let parsed = citymesh::cli::ServeArgs::parse_from(argv);
-    citymesh::app(citymesh::server::build_state(&parsed).await.unwrap())
+    common::app_of(citymesh::server::build_state(&parsed).await.unwrap())
 }
 
 async fn send(
@@ -337,12 +337,15 @@ async fn d6_the_tile_store_stays_under_its_bound_evicting_least_recently_used() 
     // Distinct z18 tiles over the demo city (around 8.4044 E, 49.0135 N), newest last.
     let first = "/tiles/18/137188/90010.glb";
     assert_eq!(get(&app, first).await.status, StatusCode::OK);
+    // Rows are written just after their answers: wait for them, as a later request would.
+    common::settle_writes().await;
     let mut total = 0usize;
     let mut k = 0;
     while total < 3 << 20 {
         let (x, y) = (137_180 + k % 16, 90_000 + k / 16);
         let a = get(&app, &format!("/tiles/18/{x}/{y}.glb")).await;
         assert_eq!(a.status, StatusCode::OK);
+        common::settle_writes().await;
         total += a.body.len();
         k += 1;
         // Keep one tile in use: it must survive eviction.

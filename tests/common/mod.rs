@@ -65,7 +65,11 @@ pub async fn app_with(dem: &Path, db: &Path, extra: &[&str]) -> axum::Router {
     }
     argv.extend_from_slice(extra);
     let args = ServeArgs::parse_from(argv);
-    let state = citymesh::server::build_state(&args).await.unwrap();
+    app_of(citymesh::server::build_state(&args).await.unwrap())
+}
+
+/// The app of a state, its tile cache known to [`settle_writes`].
+pub fn app_of(state: citymesh::state::AppState) -> axum::Router {
     if let Ok(mut caches) = CACHES.lock() {
         caches.push(state.tiles.clone());
     }
