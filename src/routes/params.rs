@@ -32,16 +32,6 @@ impl From<EncodingParam> for Encoding {
     }
 }
 
-impl From<Encoding> for EncodingParam {
-    fn from(e: Encoding) -> Self {
-        match e {
-            Encoding::Plain => EncodingParam::Plain,
-            Encoding::Quantized => EncodingParam::Quantized,
-            Encoding::Meshopt => EncodingParam::Meshopt,
-        }
-    }
-}
-
 /// The encoding of a response: `?encoding=` if given, else an `encoding` parameter of a
 /// `model/gltf-binary` type in `Accept` (`Accept: model/gltf-binary; encoding=meshopt`), else
 /// `default`. An unknown name in `Accept` is ignored (a hint, not a demand).

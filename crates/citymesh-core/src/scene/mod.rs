@@ -105,12 +105,10 @@ impl Scene {
                         })
                     })
                     .collect();
+                // A thread's panic goes on in the caller, as it would have on one thread.
                 handles
                     .into_iter()
-                    .map(|h| {
-                        h.join()
-                            .unwrap_or_else(|_| (Mesh::default(), GroupsBuilt::incomplete()))
-                    })
+                    .map(|h| h.join().unwrap_or_else(|p| std::panic::resume_unwind(p)))
                     .collect()
             });
             mesh.reserve_for(parts.iter().map(|(m, _)| m));
@@ -164,16 +162,6 @@ struct GroupsBuilt {
     buildings: BuildingStats,
     cluster_triangles: Vec<Range<usize>>,
     complete: bool,
-}
-
-impl GroupsBuilt {
-    fn incomplete() -> Self {
-        Self {
-            buildings: BuildingStats::default(),
-            cluster_triangles: Vec::new(),
-            complete: false,
-        }
-    }
 }
 
 /// Builds `clusters` in order into `mesh`, asking `stop` before each.

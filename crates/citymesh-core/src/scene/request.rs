@@ -161,17 +161,14 @@ impl<'a> SceneRequest<'a> {
     /// The scene over `model`, encoded.
     pub fn generate(&self, model: &ElevationModel) -> SceneOutput {
         let records = self.group_records();
-        let never = || false;
-        let scene = Scene::new_with_workers(
+        let (scene, _) = Scene::build(
             model,
             &self.bbox,
             &as_refs(&records),
             self.border,
-            &never,
+            &|| false,
             self.workers,
         );
-        let scene =
-            scene.unwrap_or_else(|| Scene::new(model, &self.bbox, &as_refs(&records), self.border));
         Self::output(scene, self.placement, self.encoding, &records)
     }
 
