@@ -14,4 +14,4 @@ mod tile_cache;
 pub use key::{Encoding, Region, RoofSource, TileId, TileKey};
 pub use scene_cache::{CachedScene, SceneCache};
 pub use store::{StoredTile, TileStore};
-pub use tile_cache::{CacheLevel, CachedTile, TileCache, etag_of};
+pub use tile_cache::{CacheLevel, CachedTile, TileCache, etag_header, etag_of};

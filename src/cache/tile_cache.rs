@@ -6,6 +6,7 @@ use super::scene_cache::SceneCache;
 use super::store::TileStore;
 use crate::generation_stats::GenerationStats;
 use crate::metrics::Metrics;
+use axum::http::HeaderValue;
 use bytes::Bytes;
 use citymesh_core::geo::GeoBbox;
 use std::future::Future;
@@ -13,11 +14,12 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU8, AtomicU64, Ordering};
 use tokio_util::task::TaskTracker;
 
-/// A tile ready to send: its bytes and their strong ETag (quoted).
+/// A tile ready to send: its bytes and their strong ETag (quoted, as a header value made once, so
+/// answering from memory copies neither).
 #[derive(Clone, Debug)]
 pub struct CachedTile {
     pub bytes: Bytes,
-    pub etag: Arc<str>,
+    pub etag: HeaderValue,
     /// Generation figures, present when this request generated the tile.
     pub generated: Option<Arc<GenerationStats>>,
 }
@@ -44,6 +46,16 @@ impl CacheLevel {
 /// The strong ETag of some bytes, quoted as HTTP writes it.
 pub fn etag_of(bytes: &[u8]) -> String {
     format!("\"{:016x}\"", xxhash_rust::xxh3::xxh3_64(bytes))
+}
+
+/// The ETag of `bytes` as a header value, taking `known` when it is one (a stored row's; a
+/// damaged one is computed again).
+pub fn etag_header(known: Option<&str>, bytes: &[u8]) -> HeaderValue {
+    known
+        .and_then(|e| HeaderValue::from_str(e).ok())
+        .or_else(|| HeaderValue::from_str(&etag_of(bytes)).ok())
+        // Quoted hex is always a valid header value: never reached.
+        .unwrap_or_else(|| HeaderValue::from_static("\"0\""))
 }
 
 /// Bytes an entry costs beyond its tile's bytes (measured: about 1.1 KB).
@@ -153,8 +165,8 @@ impl TileCache {
                     self.metrics.cache("sqlite", true);
                     level.store(1, Ordering::Relaxed);
                     return Ok::<_, E>(CachedTile {
+                        etag: etag_header(Some(&stored.etag), &stored.bytes),
                         bytes: stored.bytes,
-                        etag: Arc::from(stored.etag),
                         generated: None,
                     });
                 }
@@ -172,8 +184,8 @@ impl TileCache {
                     outdated.store(true, Ordering::SeqCst);
                 }
                 Ok(CachedTile {
+                    etag: etag_header(Some(&etag), &bytes),
                     bytes,
-                    etag: Arc::from(etag),
                     generated: Some(Arc::new(stats)),
                 })
             })

@@ -2,7 +2,7 @@
 //! `Cache-Control`.
 
 use super::headers::glb_headers;
-use crate::cache::{CacheLevel, CachedTile, etag_of};
+use crate::cache::{CacheLevel, CachedTile, etag_header};
 use crate::pipeline::Generated;
 use axum::body::Body;
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
@@ -10,7 +10,10 @@ use axum::response::{IntoResponse, Response};
 use bytes::Bytes;
 
 /// Whether an `If-None-Match` header names this ETag (or is `*`).
-fn matches(request: &HeaderMap, ours: &str) -> bool {
+fn matches(request: &HeaderMap, ours: &HeaderValue) -> bool {
+    let Ok(ours) = ours.to_str() else {
+        return false;
+    };
     let Some(value) = request
         .get(header::IF_NONE_MATCH)
         .and_then(|v| v.to_str().ok())
@@ -26,18 +29,17 @@ fn matches(request: &HeaderMap, ours: &str) -> bool {
 pub fn conditional_response(
     request: &HeaderMap,
     body: Bytes,
-    etag: &str,
+    etag: HeaderValue,
     mut headers: HeaderMap,
     cache_control: &'static str,
 ) -> Response {
-    if let Ok(v) = HeaderValue::from_str(etag) {
-        headers.insert(header::ETAG, v);
-    }
+    let not_modified = matches(request, &etag);
+    headers.insert(header::ETAG, etag);
     headers.insert(
         header::CACHE_CONTROL,
         HeaderValue::from_static(cache_control),
     );
-    if matches(request, etag) {
+    if not_modified {
         headers.remove(header::CONTENT_TYPE);
         return (StatusCode::NOT_MODIFIED, headers, Body::empty()).into_response();
     }
@@ -50,13 +52,13 @@ pub fn generated_response(
     generated: Generated,
     cache_control: &'static str,
 ) -> Response {
-    let etag = etag_of(&generated.glb);
+    let etag = etag_header(None, &generated.glb);
     let mut headers = glb_headers(Some(&generated.stats));
     headers.insert(
         axum::http::HeaderName::from_static("x-citymesh-cache"),
         HeaderValue::from_static(if generated.from_cache { "hit" } else { "miss" }),
     );
-    conditional_response(request, generated.glb, &etag, headers, cache_control)
+    conditional_response(request, generated.glb, etag, headers, cache_control)
 }
 
 /// A tile from the tile cache, saying which level it came from.
@@ -71,7 +73,7 @@ pub fn cached_response(
         axum::http::HeaderName::from_static("x-citymesh-cache"),
         HeaderValue::from_static(level.name()),
     );
-    conditional_response(request, cached.bytes, &cached.etag, headers, cache_control)
+    conditional_response(request, cached.bytes, cached.etag, headers, cache_control)
 }
 
 #[cfg(test)]
@@ -80,7 +82,7 @@ mod tests {
 
     #[test]
     fn if_none_match_lists_and_wildcards() {
-        let etag = "\"abc\"";
+        let etag = &HeaderValue::from_static("\"abc\"");
         let mut h = HeaderMap::new();
         assert!(!matches(&h, etag));
         h.insert(

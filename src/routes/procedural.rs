@@ -4,7 +4,7 @@
 
 use super::conditional::{conditional_response, generated_response};
 use super::schemas::GlbBytes;
-use crate::cache::etag_of;
+use crate::cache::etag_header;
 use crate::error::{AppError, ErrorBody};
 use crate::pipeline::{Buildings, generate, run_blocking};
 use crate::state::AppState;
@@ -164,11 +164,11 @@ pub async fn procedural_geojson(
         header::CONTENT_TYPE,
         HeaderValue::from_static("application/geo+json"),
     );
-    let etag = etag_of(&body);
+    let etag = etag_header(None, &body);
     Ok(conditional_response(
         &request_headers,
         body,
-        &etag,
+        etag,
         headers,
         "public, max-age=3600",
     ))

@@ -9,8 +9,7 @@ use crate::error::{AppError, ErrorBody};
 use crate::pipeline::{Buildings, RoofsParam, generate};
 use crate::state::AppState;
 use axum::extract::rejection::PathRejection;
-use axum::extract::{Path, RawQuery, State};
-use axum::http::HeaderMap;
+use axum::extract::{Path, RawQuery, Request, State};
 use axum::response::Response;
 use citymesh_core::geo::TileCoord;
 use citymesh_core::mesh::Encoding;
@@ -48,10 +47,12 @@ use citymesh_core::mesh::Encoding;
     ))]
 pub async fn tile_glb(
     State(state): State<AppState>,
-    request_headers: HeaderMap,
     path: Result<Path<(String, String, String)>, PathRejection>,
     RawQuery(query): RawQuery,
+    // The whole request rather than a copy of its headers: this is the hottest route.
+    request: Request,
 ) -> Result<Response, AppError> {
+    let request_headers = request.headers();
     let Path((z, x, y)) = path.map_err(|e| AppError::bad_request("invalid_tile", e.body_text()))?;
     let tile = parse_tile(&z, &x, &y)?;
     let limits = state.limits;
@@ -65,7 +66,7 @@ pub async fn tile_glb(
         ));
     }
     let asked = tile_query_of(query.as_deref())?;
-    let encoding = encoding_for(asked.encoding, &request_headers, Encoding::Plain);
+    let encoding = encoding_for(asked.encoding, request_headers, Encoding::Plain);
     let key = TileKey::xyz(tile).with_encoding(encoding);
     match asked.roofs.unwrap_or_default() {
         // The common case stays as lean as a plain cached tile.
@@ -85,7 +86,7 @@ pub async fn tile_glb(
                 })
                 .await?;
             Ok(cached_response(
-                &request_headers,
+                request_headers,
                 cached,
                 level,
                 TILE_CACHE_CONTROL,
@@ -94,7 +95,7 @@ pub async fn tile_glb(
         RoofsParam::Classified => {
             cached_tile(
                 &state,
-                &request_headers,
+                request_headers,
                 key,
                 RoofsParam::Classified,
                 TILE_CACHE_CONTROL,

@@ -93,9 +93,13 @@ pub async fn serve(
 
 /// A TCP stream that fails once it has been silent (no byte read or written while waiting for
 /// one) for longer than its limit.
+///
+/// Traffic only notes the time; the timer is moved when it fires early (after the last traffic
+/// plus the limit), so a busy connection does not touch the timer wheel on every read and write.
 struct IdleTimeout {
     inner: TcpStream,
     limit: Duration,
+    last_traffic: Instant,
     deadline: Pin<Box<Sleep>>,
 }
 
@@ -104,24 +108,31 @@ impl IdleTimeout {
         Self {
             inner,
             limit,
+            last_traffic: Instant::now(),
             deadline: Box::pin(tokio::time::sleep(limit)),
         }
     }
 
     /// Some traffic: the silence starts again.
     fn active(&mut self) {
-        let next = Instant::now() + self.limit;
-        self.deadline.as_mut().reset(next);
+        self.last_traffic = Instant::now();
     }
 
     /// Waiting for traffic: an error once the silence has lasted too long.
     fn waiting(&mut self, cx: &mut Context<'_>) -> Poll<io::Error> {
-        match self.deadline.as_mut().poll(cx) {
-            Poll::Ready(()) => Poll::Ready(io::Error::new(
-                io::ErrorKind::TimedOut,
-                "connection idle for too long",
-            )),
-            Poll::Pending => Poll::Pending,
+        loop {
+            if self.deadline.as_mut().poll(cx).is_pending() {
+                return Poll::Pending;
+            }
+            let due = self.last_traffic + self.limit;
+            if due <= Instant::now() {
+                return Poll::Ready(io::Error::new(
+                    io::ErrorKind::TimedOut,
+                    "connection idle for too long",
+                ));
+            }
+            // There was traffic since the timer was set: wait from the last of it.
+            self.deadline.as_mut().reset(due);
         }
     }
 }

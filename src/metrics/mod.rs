@@ -2,11 +2,15 @@
 //! status, request latency, cache hits and misses per level, upstream calls and errors, and
 //! generation time.
 
+mod requests;
+
 use prometheus_client::encoding::EncodeLabelSet;
 use prometheus_client::metrics::counter::Counter;
 use prometheus_client::metrics::family::Family;
 use prometheus_client::metrics::histogram::Histogram;
 use prometheus_client::registry::Registry;
+pub use requests::RequestMetrics;
+use std::sync::Arc;
 
 #[derive(Clone, Debug, Hash, PartialEq, Eq, EncodeLabelSet)]
 pub struct RequestLabels {
@@ -50,8 +54,8 @@ pub struct ResultLabels {
 /// Every metric citymesh keeps.
 pub struct Metrics {
     registry: Registry,
-    pub requests: Family<RequestLabels, Counter>,
-    pub latency: Family<RouteLabels, Histogram>,
+    /// Requests by route and status, latency by route.
+    pub requests: Arc<RequestMetrics>,
     pub cache: Family<CacheLabels, Counter>,
     pub upstream: Family<UpstreamLabels, Counter>,
     pub generations: Counter,
@@ -75,10 +79,7 @@ fn latency_buckets() -> impl Iterator<Item = f64> {
 impl Default for Metrics {
     fn default() -> Self {
         let mut registry = Registry::with_prefix("citymesh");
-        let requests = Family::<RequestLabels, Counter>::default();
-        let latency = Family::<RouteLabels, Histogram>::new_with_constructor(|| {
-            Histogram::new(latency_buckets())
-        });
+        let requests = Arc::new(RequestMetrics::new());
         let cache = Family::<CacheLabels, Counter>::default();
         let upstream = Family::<UpstreamLabels, Counter>::default();
         let generations = Counter::default();
@@ -102,16 +103,7 @@ impl Default for Metrics {
             "Time to classify one batch of roof crops",
             inference_seconds.clone(),
         );
-        registry.register(
-            "http_requests",
-            "HTTP requests by route and status",
-            requests.clone(),
-        );
-        registry.register(
-            "http_request_duration_seconds",
-            "Time to answer an HTTP request, by route",
-            latency.clone(),
-        );
+        registry.register_collector(Box::new(requests.clone()));
         registry.register(
             "cache_requests",
             "Cache lookups by level (memory, sqlite, osm_memory, osm_sqlite) and result",
@@ -136,7 +128,6 @@ impl Default for Metrics {
         Self {
             registry,
             requests,
-            latency,
             cache,
             upstream,
             generations,
