@@ -8,25 +8,25 @@ use clap::Parser;
 #[global_allocator]
 static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
-#[tokio::main]
-async fn main() -> anyhow::Result<()> {
-    let cli = Cli::parse();
-    match cli.command.unwrap_or_default() {
+fn main() -> anyhow::Result<()> {
+    match Cli::parse().command.unwrap_or_default() {
+        // Serving and the commands that talk to the database or the network need the runtime;
+        // batch commands run on this thread and start none (it shows in whole-process timings).
+        command @ (Command::Serve(_) | Command::Import(_) | Command::Classify(_)) => {
+            tokio::runtime::Builder::new_multi_thread()
+                .enable_all()
+                .build()?
+                .block_on(run(command))
+        }
+        command => run_batch(command),
+    }
+}
+
+/// The commands that serve or wait on the network and the database (on the runtime `main`
+/// starts).
+async fn run(command: Command) -> anyhow::Result<()> {
+    match command {
         Command::Serve(args) => citymesh::server::run(*args).await,
-        Command::Openapi => {
-            println!("{}", citymesh::routes::openapi_json());
-            Ok(())
-        }
-        Command::Scene(args) => {
-            let report =
-                tokio::task::spawn_blocking(move || citymesh::scene_file::export_scene(&args))
-                    .await??;
-            eprintln!(
-                "{} buildings ({} skipped), {} bytes, generated in {:.1} ms",
-                report.buildings, report.skipped, report.bytes, report.generation_ms
-            );
-            Ok(())
-        }
         Command::Import(args) => {
             let report = citymesh::import::import(&args.files, &args.cache_db, args.quiet).await?;
             println!(
@@ -38,6 +38,30 @@ async fn main() -> anyhow::Result<()> {
                 report.tiles_invalidated,
                 args.cache_db
             );
+            Ok(())
+        }
+        Command::Classify(args) => {
+            let summary = citymesh::classifier::classify_area::run(&args).await?;
+            println!("{summary}");
+            Ok(())
+        }
+        command => run_batch(command),
+    }
+}
+
+/// The commands that only compute and write files, on the calling thread.
+fn run_batch(command: Command) -> anyhow::Result<()> {
+    match command {
+        Command::Scene(args) => {
+            let report = citymesh::scene_file::export_scene(&args)?;
+            eprintln!(
+                "{} buildings ({} skipped), {} bytes, generated in {:.1} ms",
+                report.buildings, report.skipped, report.bytes, report.generation_ms
+            );
+            Ok(())
+        }
+        Command::Openapi => {
+            println!("{}", citymesh::routes::openapi_json());
             Ok(())
         }
         Command::RenderRoofs(args) => {
@@ -68,17 +92,15 @@ async fn main() -> anyhow::Result<()> {
             );
             Ok(())
         }
-        Command::Classify(args) => {
-            let summary = citymesh::classifier::classify_area::run(&args).await?;
-            println!("{summary}");
-            Ok(())
-        }
         Command::ClassifyImage(args) => {
             if citymesh::classifier::classify_image::run(&args)? {
                 Ok(())
             } else {
                 std::process::exit(1)
             }
+        }
+        Command::Serve(_) | Command::Import(_) | Command::Classify(_) => {
+            anyhow::bail!("this command needs the async runtime (main starts it)")
         }
     }
 }

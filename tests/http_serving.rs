@@ -13,7 +13,7 @@ use citymesh_core::geo::{LocalFrame, TileCoord};
 use citymesh_core::osm::read_buildings;
 use common::{app_with, assert_valid_glb, data_dir, dem_dir, get, osm_bytes};
 use serde_json::Value;
-use std::collections::{HashMap, HashSet};
+use std::collections::{BTreeSet, HashMap, HashSet};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
@@ -88,7 +88,9 @@ impl Stub {
         let is_building =
             |t: &Value| t.get("building").is_some() || t.get("building:part").is_some();
         let mut out: Vec<Value> = Vec::new();
-        let mut way_ids = HashSet::new();
+        // Sorted sets: the same query gets the same answer, byte for byte, and Thinner always
+        // drops the same buildings.
+        let mut way_ids = BTreeSet::new();
         for way in &self.ways {
             if is_building(&way["tags"]) && way["nodes"].as_array().unwrap().iter().any(inside) {
                 way_ids.insert(way["id"].as_i64().unwrap());
@@ -112,7 +114,7 @@ impl Stub {
                 way_ids.extend(members);
             }
         }
-        let mut node_ids = HashSet::new();
+        let mut node_ids = BTreeSet::new();
         for id in &way_ids {
             if let Some(w) = way_by_id.get(id) {
                 out.push((*w).clone());

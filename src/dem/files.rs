@@ -1,6 +1,6 @@
-//! Reading an SRTM file's bytes from disk, whatever its packaging.
+//! Reading an SRTM file from disk, whatever its packaging.
 
-use std::io::Read;
+use citymesh_core::terrain::{HgtError, HgtTile};
 use std::path::Path;
 
 /// Why an SRTM file could not be read.
@@ -15,30 +15,31 @@ pub enum DemFileError {
     Zip { path: String, detail: String },
     #[error("{path} holds no .hgt file")]
     NoHgtInZip { path: String },
+    /// Not HGT data (wrong size, a broken stream); decompression stops just past the largest
+    /// SRTM file's size, so a zip bomb costs no more than one.
+    #[error("{path}: {detail}")]
+    Hgt { path: String, detail: String },
 }
 
-/// Largest decompressed HGT we accept (an SRTM1 file is 25.9 MB): guards against zip bombs.
-const MAX_HGT_BYTES: u64 = 26_000_000;
-
-/// The raw HGT bytes of a `.hgt`, `.hgt.gz` or `.hgt.zip` file.
-pub fn read_hgt_bytes(path: &Path) -> Result<Vec<u8>, DemFileError> {
+/// An SRTM file (`.hgt`, `.hgt.gz` or `.hgt.zip`) read and decoded as a stream, for the area
+/// `(south, west)` its name gives.
+pub fn read_hgt(path: &Path, south: i32, west: i32) -> Result<HgtTile, DemFileError> {
     let shown = path.display().to_string();
-    let io = |source| DemFileError::Io {
-        path: shown.clone(),
-        source,
-    };
     let name = path
         .file_name()
         .and_then(|n| n.to_str())
         .unwrap_or_default()
         .to_ascii_lowercase();
-    let file = std::fs::File::open(path).map_err(io)?;
-    let mut bytes = Vec::new();
+    let file = std::fs::File::open(path).map_err(|source| DemFileError::Io {
+        path: shown.clone(),
+        source,
+    })?;
+    let hgt = |e: HgtError| DemFileError::Hgt {
+        path: shown.clone(),
+        detail: e.to_string(),
+    };
     if name.ends_with(".gz") {
-        flate2::read::GzDecoder::new(file)
-            .take(MAX_HGT_BYTES)
-            .read_to_end(&mut bytes)
-            .map_err(io)?;
+        HgtTile::read(south, west, flate2::read::GzDecoder::new(file), 0).map_err(hgt)
     } else if name.ends_with(".zip") {
         let zip_err = |e: zip::result::ZipError| DemFileError::Zip {
             path: shown.clone(),
@@ -55,14 +56,12 @@ pub fn read_hgt_bytes(path: &Path) -> Result<Vec<u8>, DemFileError> {
                 path: shown.clone(),
             })?;
         let entry = archive.by_index(index).map_err(zip_err)?;
-        entry
-            .take(MAX_HGT_BYTES)
-            .read_to_end(&mut bytes)
-            .map_err(io)?;
+        let size = usize::try_from(entry.size()).unwrap_or(0);
+        HgtTile::read(south, west, entry, size).map_err(hgt)
     } else {
-        file.take(MAX_HGT_BYTES)
-            .read_to_end(&mut bytes)
-            .map_err(io)?;
+        let size = file
+            .metadata()
+            .map_or(0, |m| usize::try_from(m.len()).unwrap_or(0));
+        HgtTile::read(south, west, file, size).map_err(hgt)
     }
-    Ok(bytes)
 }

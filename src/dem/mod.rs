@@ -5,5 +5,5 @@
 mod files;
 mod store;
 
-pub use files::{DemFileError, read_hgt_bytes};
+pub use files::{DemFileError, read_hgt};
 pub use store::{DemLookup, DemStore};

@@ -1,6 +1,6 @@
 //! Lazy, bounded loading of SRTM tiles for the areas requests ask for.
 
-use super::files::read_hgt_bytes;
+use super::files::read_hgt;
 use citymesh_core::geo::GeoBbox;
 use citymesh_core::terrain::{ElevationModel, HgtTile, dem_tiles_for, parse_hgt_name};
 use std::collections::{BTreeMap, HashMap};
@@ -114,9 +114,7 @@ impl DemStore {
         let loaded = self
             .cache
             .try_get_with(key, || -> Result<Arc<HgtTile>, String> {
-                let bytes = read_hgt_bytes(path).map_err(|e| e.to_string())?;
-                let tile = HgtTile::from_bytes(key.0, key.1, &bytes)
-                    .map_err(|e| format!("{}: {e}", path.display()))?;
+                let tile = read_hgt(path, key.0, key.1).map_err(|e| e.to_string())?;
                 tracing::debug!(file = %path.display(), size = tile.size(), "DEM file loaded");
                 Ok(Arc::new(tile))
             });

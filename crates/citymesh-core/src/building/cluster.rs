@@ -3,7 +3,7 @@
 //! inside a `building` outline is cut out of it. A cluster is never split between tiles.
 
 use crate::osm::{BuildingRecord, RingNode};
-use std::collections::HashMap;
+use foldhash::HashMap;
 
 /// The identity of a node for adjacency: its id, or its exact coordinates when it has none.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -85,7 +85,7 @@ pub fn record_bounds(b: &BuildingRecord) -> [f64; 4] {
 /// clusters are ordered by their first record.
 pub fn clusters(records: &[BuildingRecord]) -> Vec<Vec<usize>> {
     let mut uf = UnionFind((0..records.len()).collect());
-    let mut first_with: HashMap<NodeRef, usize> = HashMap::new();
+    let mut first_with: HashMap<NodeRef, usize> = HashMap::default();
     for (i, b) in records.iter().enumerate() {
         for node in b.outers.iter().chain(&b.inners).flat_map(|r| &r.nodes) {
             let j = *first_with.entry(NodeRef::of(node)).or_insert(i);
@@ -95,7 +95,7 @@ pub fn clusters(records: &[BuildingRecord]) -> Vec<Vec<usize>> {
     // Parts join the outline they stand in, found through a coarse grid of outline boxes.
     const CELL: f64 = 0.002;
     let cell = |lon: f64, lat: f64| ((lon / CELL).floor() as i64, (lat / CELL).floor() as i64);
-    let mut grid: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
+    let mut grid: HashMap<(i64, i64), Vec<usize>> = HashMap::default();
     for (i, b) in records.iter().enumerate().filter(|(_, b)| !b.is_part) {
         let [x0, y0, x1, y1] = record_bounds(b);
         let ((cx0, cy0), (cx1, cy1)) = (cell(x0, y0), cell(x1, y1));
@@ -121,7 +121,7 @@ pub fn clusters(records: &[BuildingRecord]) -> Vec<Vec<usize>> {
             }
         }
     }
-    let mut by_root: HashMap<usize, Vec<usize>> = HashMap::new();
+    let mut by_root: HashMap<usize, Vec<usize>> = HashMap::default();
     for i in 0..records.len() {
         let root = uf.find(i);
         by_root.entry(root).or_default().push(i);

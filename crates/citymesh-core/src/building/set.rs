@@ -7,7 +7,8 @@
 use super::cluster::{clusters, record_bounds};
 use crate::geo::{GeoBbox, ImplicitTile, TileCoord};
 use crate::osm::BuildingRecord;
-use std::collections::{BTreeSet, HashMap};
+use foldhash::HashMap;
+use std::collections::BTreeSet;
 
 /// Grid cell size in degrees (about 500 m).
 const CELL: f64 = 0.005;
@@ -83,7 +84,7 @@ impl BuildingSet {
                 })
                 .collect(),
             records,
-            grid: HashMap::new(),
+            grid: HashMap::default(),
         };
         for (i, c) in out.clusters.iter().enumerate() {
             let [x0, y0, x1, y1] = c.bounds;

@@ -3,7 +3,7 @@
 //! Whatever real data gets wrong is skipped with a reason and counted; the rest still renders.
 
 use super::raw::{MemberKind, RawOsm, RawWay, Tags};
-use std::collections::{HashMap, HashSet};
+use foldhash::{HashMap, HashSet};
 use std::fmt;
 
 /// The OSM element a building comes from.
@@ -238,13 +238,13 @@ fn join_rings(mut segments: Vec<Vec<RingNode>>) -> Result<Vec<Ring>, SkipReason>
 }
 
 /// Finds the buildings and building parts in a document.
-pub fn assemble(raw: RawOsm) -> OsmBuildings {
+pub fn assemble(mut raw: RawOsm) -> OsmBuildings {
     let ways: HashMap<i64, &RawWay> = raw.ways.iter().map(|w| (w.id, w)).collect();
     let mut out = OsmBuildings::default();
     // Ways that are outer members of a building multipolygon are drawn by the relation.
-    let mut drawn_by_relation = HashSet::new();
+    let mut drawn_by_relation = HashSet::default();
 
-    for rel in &raw.relations {
+    for rel in &mut raw.relations {
         if rel.tags.get("type").map(String::as_str) != Some("multipolygon") {
             continue;
         }
@@ -312,7 +312,8 @@ pub fn assemble(raw: RawOsm) -> OsmBuildings {
                     is_part,
                     outers,
                     inners,
-                    tags: rel.tags.clone(),
+                    // Each relation is read once: its tags move to the record.
+                    tags: std::mem::take(&mut rel.tags),
                 });
             }
             Err(reason) => {
@@ -327,7 +328,9 @@ pub fn assemble(raw: RawOsm) -> OsmBuildings {
         }
     }
 
-    for way in &raw.ways {
+    // Rings first (relations may still look ways up), then each way's tags move to its record.
+    let mut rings = Vec::new();
+    for (i, way) in raw.ways.iter().enumerate() {
         let Some(is_part) = building_kind(&way.tags) else {
             continue;
         };
@@ -336,18 +339,23 @@ pub fn assemble(raw: RawOsm) -> OsmBuildings {
         }
         let id = OsmId::Way(way.id);
         match way_points(way, &raw.nodes).and_then(close_ring) {
-            Ok(ring) => out.buildings.push(BuildingRecord {
-                id,
-                is_part,
-                outers: vec![ring],
-                inners: Vec::new(),
-                tags: way.tags.clone(),
-            }),
+            Ok(ring) => rings.push((i, is_part, ring)),
             Err(reason) => {
                 let bounds = known_bounds(std::iter::once(way.id), &ways, &raw.nodes);
                 out.skipped.push(Skipped { id, reason, bounds });
             }
         }
+    }
+    drop(ways);
+    for (i, is_part, ring) in rings {
+        let way = &mut raw.ways[i];
+        out.buildings.push(BuildingRecord {
+            id: OsmId::Way(way.id),
+            is_part,
+            outers: vec![ring],
+            inners: Vec::new(),
+            tags: std::mem::take(&mut way.tags),
+        });
     }
     out.buildings.sort_by_key(|b| b.id);
     out.skipped.sort_by_key(|s| s.id);

@@ -1,6 +1,7 @@
 //! The elements of an OSM document as the readers produce them, before buildings are assembled.
 
-use std::collections::{BTreeMap, HashMap};
+use foldhash::HashMap;
+use std::collections::BTreeMap;
 
 /// OSM tags of one element.
 pub type Tags = BTreeMap<String, String>;

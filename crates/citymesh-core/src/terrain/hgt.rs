@@ -14,7 +14,13 @@ pub enum HgtError {
     WrongSize(usize),
     #[error("'{0}' is not an SRTM file name like N49E008.hgt")]
     BadName(String),
+    #[error("cannot read the HGT data: {0}")]
+    Read(String),
 }
+
+/// The sizes of the two SRTM grids, bytes.
+const SRTM3_BYTES: usize = 2_884_802;
+const SRTM1_BYTES: usize = 25_934_402;
 
 /// One parsed HGT file.
 #[derive(Clone, PartialEq, Eq)]
@@ -42,8 +48,8 @@ impl HgtTile {
     /// Parses the bytes of an HGT file covering `[south, south+1] x [west, west+1]`.
     pub fn from_bytes(south: i32, west: i32, bytes: &[u8]) -> Result<Self, HgtError> {
         let size = match bytes.len() {
-            2_884_802 => 1201,
-            25_934_402 => 3601,
+            SRTM3_BYTES => 1201,
+            SRTM1_BYTES => 3601,
             n => return Err(HgtError::WrongSize(n)),
         };
         let samples = bytes
@@ -56,6 +62,46 @@ impl HgtTile {
             size,
             samples,
         })
+    }
+
+    /// Reads HGT data from `reader`, decoding as it goes: the bytes are never held whole (half
+    /// the memory of reading the file and then parsing it). `size_hint` is the expected byte
+    /// count, when known; at most an SRTM1 file's bytes are read (then it is refused), however
+    /// long the stream.
+    pub fn read(
+        south: i32,
+        west: i32,
+        reader: impl std::io::Read,
+        size_hint: usize,
+    ) -> Result<Self, HgtError> {
+        use std::io::Read;
+        let mut reader = reader.take(SRTM1_BYTES as u64 + 1);
+        let mut samples = Vec::with_capacity(size_hint.min(SRTM1_BYTES) / 2);
+        let mut buf = vec![0u8; 1 << 16];
+        // A chunk may end between the two bytes of a sample.
+        let mut high: Option<u8> = None;
+        let mut total = 0;
+        loop {
+            let n = match reader.read(&mut buf) {
+                Ok(0) => break,
+                Ok(n) => n,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                Err(e) => return Err(HgtError::Read(e.to_string())),
+            };
+            total += n;
+            let mut chunk = &buf[..n];
+            if let (Some(h), Some((&l, rest))) = (high, chunk.split_first()) {
+                samples.push(i16::from_be_bytes([h, l]));
+                chunk = rest;
+            }
+            let mut pairs = chunk.chunks_exact(2);
+            samples.extend(pairs.by_ref().map(|b| i16::from_be_bytes([b[0], b[1]])));
+            high = pairs.remainder().first().copied();
+        }
+        if total != SRTM3_BYTES && total != SRTM1_BYTES {
+            return Err(HgtError::WrongSize(total));
+        }
+        Self::from_samples(south, west, samples)
     }
 
     /// Builds a tile from samples (rows north to south); `samples.len()` must be `size * size`
@@ -176,6 +222,37 @@ pub fn parse_hgt_name(name: &str) -> Result<(i32, i32), HgtError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A reader that hands out its bytes in odd-sized pieces, as a decompressor may.
+    struct Dribble<'a>(&'a [u8], usize);
+
+    impl std::io::Read for Dribble<'_> {
+        fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+            let n = self.1.min(buf.len()).min(self.0.len());
+            buf[..n].copy_from_slice(&self.0[..n]);
+            self.0 = &self.0[n..];
+            Ok(n)
+        }
+    }
+
+    #[test]
+    fn reading_a_stream_in_odd_pieces_equals_parsing_the_bytes() {
+        let bytes: Vec<u8> = (0..SRTM3_BYTES).map(|i| (i * 7 % 251) as u8).collect();
+        let parsed = HgtTile::from_bytes(49, 8, &bytes).unwrap();
+        for piece in [1, 3, 4097, 1 << 16] {
+            let read = HgtTile::read(49, 8, Dribble(&bytes, piece), 0).unwrap();
+            assert_eq!(read, parsed, "pieces of {piece}");
+        }
+        assert_eq!(
+            HgtTile::read(49, 8, Dribble(&bytes[..SRTM3_BYTES - 1], 999), SRTM3_BYTES),
+            Err(HgtError::WrongSize(SRTM3_BYTES - 1))
+        );
+        // An endless stream stops one byte past the largest size.
+        assert_eq!(
+            HgtTile::read(49, 8, std::io::repeat(0), 0),
+            Err(HgtError::WrongSize(SRTM1_BYTES + 1))
+        );
+    }
 
     #[test]
     fn refuses_truncated_bytes() {
