@@ -42,15 +42,19 @@ pub fn export_scene(args: &SceneArgs) -> anyhow::Result<SceneReport> {
         })
         .transpose()?;
     let dem = DemStore::open(&args.dem_dir, 1 << 30);
-    // The SRTM files of the area load on a second thread while the building set is indexed (the
-    // lookup below then finds them loaded).
-    let prefetch = given.or_else(|| outline_extent(&records));
-    let set = std::thread::scope(|s| {
-        if let Some(area) = prefetch {
+    // The ground under the buildings (and a margin around a given box, which buildings cut at
+    // its border may reach into) loads on a second thread while the building set is indexed;
+    // only the rows of the SRTM files it covers are read.
+    let ground_area = given
+        .map(|b| b.grown_by_metres(GROUND_MARGIN_M))
+        .or_else(|| outline_extent(&records));
+    let (set, ground) = std::thread::scope(|s| {
+        let ground = ground_area.map(|area| {
             let dem = &dem;
-            s.spawn(move || dem.lookup(&area));
-        }
-        BuildingSet::new(records)
+            s.spawn(move || (area, dem.read_for(&area)))
+        });
+        let set = BuildingSet::new(records);
+        (set, ground.and_then(|g| g.join().ok()))
     });
     // With a box: the scene of `/scene?bbox=`, buildings cut at its border. Without: every
     // building whole, on the ground of their extent.
@@ -67,7 +71,11 @@ pub fn export_scene(args: &SceneArgs) -> anyhow::Result<SceneReport> {
         .with_encoding(args.encoding.into())
         // One scene and nothing else to do: every core may build groups.
         .with_workers(std::thread::available_parallelism().map_or(1, usize::from));
-    let lookup = dem.lookup(&request.terrain_bbox());
+    let terrain = request.terrain_bbox();
+    let lookup = match ground {
+        Some((area, lookup)) if covers(&area, &terrain) => lookup,
+        _ => dem.read_for(&terrain),
+    };
     if !lookup.missing.is_empty() {
         tracing::warn!(missing = ?lookup.missing, "SRTM files missing: the ground there is flat at 0 m");
     }
@@ -126,4 +134,16 @@ fn outline_extent(records: &[BuildingRecord]) -> Option<GeoBbox> {
         ];
     }
     GeoBbox::new(e[0], e[1], e[2], e[3]).ok()
+}
+
+/// How far around a given box the ground is read ahead, metres: buildings cut at the box's
+/// border reach this far in all but odd cases (then the ground is read again).
+const GROUND_MARGIN_M: f64 = 300.0;
+
+/// Whether `outer` holds all of `inner`.
+fn covers(outer: &GeoBbox, inner: &GeoBbox) -> bool {
+    outer.min_lon() <= inner.min_lon()
+        && outer.min_lat() <= inner.min_lat()
+        && outer.max_lon() >= inner.max_lon()
+        && outer.max_lat() >= inner.max_lat()
 }

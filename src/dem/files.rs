@@ -65,3 +65,36 @@ pub fn read_hgt(path: &Path, south: i32, west: i32) -> Result<HgtTile, DemFileEr
         HgtTile::read(south, west, file, size).map_err(hgt)
     }
 }
+
+/// The rows of an uncompressed `.hgt` file that samples between `min_lat` and `max_lat` need
+/// (see [`HgtTile::read_band`]); `None` for a packed (`.gz`, `.zip`) file, which has to be read
+/// whole.
+pub fn read_hgt_band(
+    path: &Path,
+    south: i32,
+    west: i32,
+    min_lat: f64,
+    max_lat: f64,
+) -> Option<Result<HgtTile, DemFileError>> {
+    let name = path.file_name()?.to_str()?.to_ascii_lowercase();
+    if !name.ends_with(".hgt") {
+        return None;
+    }
+    let shown = path.display().to_string();
+    let read = || {
+        let file = std::fs::File::open(path).map_err(|source| DemFileError::Io {
+            path: shown.clone(),
+            source,
+        })?;
+        let bytes = file
+            .metadata()
+            .map_or(0, |m| usize::try_from(m.len()).unwrap_or(0));
+        HgtTile::read_band(south, west, file, bytes, min_lat, max_lat).map_err(|e| {
+            DemFileError::Hgt {
+                path: shown.clone(),
+                detail: e.to_string(),
+            }
+        })
+    };
+    Some(read())
+}

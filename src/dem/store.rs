@@ -1,6 +1,6 @@
 //! Lazy, bounded loading of SRTM tiles for the areas requests ask for.
 
-use super::files::read_hgt;
+use super::files::{read_hgt, read_hgt_band};
 use citymesh_core::geo::GeoBbox;
 use citymesh_core::terrain::{ElevationModel, HgtTile, dem_tiles_for, parse_hgt_name};
 use std::collections::{BTreeMap, HashMap};
@@ -96,6 +96,36 @@ impl DemStore {
         let mut missing = Vec::new();
         for key in dem_tiles_for(bbox) {
             match self.tile(key) {
+                Some(t) => tiles.push(t),
+                None => missing.push(citymesh_core::terrain::hgt_name(key.0, key.1)),
+            }
+        }
+        DemLookup {
+            model: ElevationModel::new(tiles),
+            missing,
+        }
+    }
+
+    /// What a ground grid over `bbox` needs, read for one use: of each uncompressed file only
+    /// the rows the box covers, and nothing kept (packed files are read whole, through the
+    /// cache). For one-off commands such as `citymesh scene`; a server keeps whole files.
+    pub fn read_for(&self, bbox: &GeoBbox) -> DemLookup {
+        let mut tiles = Vec::new();
+        let mut missing = Vec::new();
+        for key in dem_tiles_for(bbox) {
+            let band = self
+                .files
+                .get(&key)
+                .and_then(|path| read_hgt_band(path, key.0, key.1, bbox.min_lat(), bbox.max_lat()));
+            let tile = match band {
+                Some(Ok(tile)) => Some(Arc::new(tile)),
+                Some(Err(e)) => {
+                    tracing::warn!(reason = %e, "DEM file unusable: treated as missing");
+                    None
+                }
+                None => self.tile(key),
+            };
+            match tile {
                 Some(t) => tiles.push(t),
                 None => missing.push(citymesh_core::terrain::hgt_name(key.0, key.1)),
             }

@@ -22,13 +22,15 @@ pub enum HgtError {
 const SRTM3_BYTES: usize = 2_884_802;
 const SRTM1_BYTES: usize = 25_934_402;
 
-/// One parsed HGT file.
+/// One parsed HGT file, or a band of its rows (see [`HgtTile::read_band`]).
 #[derive(Clone, PartialEq, Eq)]
 pub struct HgtTile {
     south: i32,
     west: i32,
     size: usize,
-    /// Row-major, first row is the northern edge (as in the file).
+    /// The file row (0 = the northern edge) of the first row held.
+    first_row: usize,
+    /// Row-major, first row is `first_row` (rows run north to south, as in the file).
     samples: Vec<i16>,
 }
 
@@ -60,6 +62,7 @@ impl HgtTile {
             south,
             west,
             size,
+            first_row: 0,
             samples,
         })
     }
@@ -74,34 +77,60 @@ impl HgtTile {
         reader: impl std::io::Read,
         size_hint: usize,
     ) -> Result<Self, HgtError> {
-        use std::io::Read;
-        let mut reader = reader.take(SRTM1_BYTES as u64 + 1);
-        let mut samples = Vec::with_capacity(size_hint.min(SRTM1_BYTES) / 2);
-        let mut buf = vec![0u8; 1 << 16];
-        // A chunk may end between the two bytes of a sample.
-        let mut high: Option<u8> = None;
-        let mut total = 0;
-        loop {
-            let n = match reader.read(&mut buf) {
-                Ok(0) => break,
-                Ok(n) => n,
-                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
-                Err(e) => return Err(HgtError::Read(e.to_string())),
-            };
-            total += n;
-            let mut chunk = &buf[..n];
-            if let (Some(h), Some((&l, rest))) = (high, chunk.split_first()) {
-                samples.push(i16::from_be_bytes([h, l]));
-                chunk = rest;
-            }
-            let mut pairs = chunk.chunks_exact(2);
-            samples.extend(pairs.by_ref().map(|b| i16::from_be_bytes([b[0], b[1]])));
-            high = pairs.remainder().first().copied();
-        }
+        let (samples, total) = decode(reader, SRTM1_BYTES + 1, size_hint.min(SRTM1_BYTES) / 2)?;
         if total != SRTM3_BYTES && total != SRTM1_BYTES {
             return Err(HgtError::WrongSize(total));
         }
         Self::from_samples(south, west, samples)
+    }
+
+    /// Reads only the rows of an HGT file of `file_bytes` bytes that samples between latitudes
+    /// `min_lat` and `max_lat` can reach (two rows of margin each side, for the 3x3 windows of
+    /// ground heights): a one-off scene of a few square kilometres reads a few hundred kilobytes
+    /// of a 25 MB file. Samples outside the band answer `None`, as outside the file.
+    pub fn read_band(
+        south: i32,
+        west: i32,
+        mut file: impl std::io::Read + std::io::Seek,
+        file_bytes: usize,
+        min_lat: f64,
+        max_lat: f64,
+    ) -> Result<Self, HgtError> {
+        let size = match file_bytes {
+            SRTM3_BYTES => 1201,
+            SRTM1_BYTES => 3601,
+            n => return Err(HgtError::WrongSize(n)),
+        };
+        let per_degree = (size - 1) as f64;
+        let north = f64::from(south + 1);
+        // File rows count from the northern edge.
+        let row_of = |lat: f64| ((north - lat) * per_degree).clamp(0.0, per_degree);
+        let first = (row_of(max_lat).floor() as usize).saturating_sub(2);
+        let last = (row_of(min_lat).ceil() as usize + 2).min(size - 1);
+        if min_lat
+            .partial_cmp(&max_lat)
+            .is_none_or(std::cmp::Ordering::is_gt)
+            || first > last
+        {
+            return Err(HgtError::Read(format!(
+                "no rows between latitudes {min_lat} and {max_lat}"
+            )));
+        }
+        let rows = last - first + 1;
+        file.seek(std::io::SeekFrom::Start((first * size * 2) as u64))
+            .map_err(|e| HgtError::Read(e.to_string()))?;
+        let want = rows * size * 2;
+        let (samples, total) = decode(file, want, want / 2)?;
+        if total != want {
+            return Err(HgtError::WrongSize(first * size * 2 + total));
+        }
+        Ok(Self {
+            south,
+            west,
+            size,
+            first_row: first,
+            samples,
+        })
     }
 
     /// Builds a tile from samples (rows north to south); `samples.len()` must be `size * size`
@@ -112,12 +141,14 @@ impl HgtTile {
                 south,
                 west,
                 size: 1201,
+                first_row: 0,
                 samples,
             }),
             12_967_201 => Ok(Self {
                 south,
                 west,
                 size: 3601,
+                first_row: 0,
                 samples,
             }),
             n => Err(HgtError::WrongSize(n * 2)),
@@ -151,10 +182,12 @@ impl HgtTile {
         if row_from_south >= self.size || col >= self.size {
             return None;
         }
-        Some(self.samples[(self.size - 1 - row_from_south) * self.size + col])
+        let row = (self.size - 1 - row_from_south).checked_sub(self.first_row)?;
+        self.samples.get(row * self.size + col).copied()
     }
 
-    /// All samples, rows north to south.
+    /// All samples held, rows north to south (every row of the file unless it was read as a
+    /// band).
     pub fn samples(&self) -> &[i16] {
         &self.samples
     }
@@ -168,6 +201,40 @@ impl HgtTile {
     pub fn byte_size(&self) -> usize {
         self.samples.len() * 2
     }
+}
+
+/// Big-endian samples from `reader`, decoded 64 KB at a time, reading at most `limit` bytes;
+/// answers them and the bytes read.
+fn decode(
+    reader: impl std::io::Read,
+    limit: usize,
+    capacity: usize,
+) -> Result<(Vec<i16>, usize), HgtError> {
+    use std::io::Read;
+    let mut reader = reader.take(limit as u64);
+    let mut samples = Vec::with_capacity(capacity);
+    let mut buf = vec![0u8; 1 << 16];
+    // A chunk may end between the two bytes of a sample.
+    let mut high: Option<u8> = None;
+    let mut total = 0;
+    loop {
+        let n = match reader.read(&mut buf) {
+            Ok(0) => break,
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(HgtError::Read(e.to_string())),
+        };
+        total += n;
+        let mut chunk = &buf[..n];
+        if let (Some(h), Some((&l, rest))) = (high, chunk.split_first()) {
+            samples.push(i16::from_be_bytes([h, l]));
+            chunk = rest;
+        }
+        let mut pairs = chunk.chunks_exact(2);
+        samples.extend(pairs.by_ref().map(|b| i16::from_be_bytes([b[0], b[1]])));
+        high = pairs.remainder().first().copied();
+    }
+    Ok((samples, total))
 }
 
 /// The conventional file stem of the tile with this south-west corner (`N49E008`).
@@ -252,6 +319,58 @@ mod tests {
             HgtTile::read(49, 8, std::io::repeat(0), 0),
             Err(HgtError::WrongSize(SRTM1_BYTES + 1))
         );
+    }
+
+    #[test]
+    fn a_band_of_rows_answers_as_the_whole_file_inside_and_none_outside() {
+        let bytes: Vec<u8> = (0..SRTM3_BYTES).map(|i| (i * 7 % 251) as u8).collect();
+        let whole = HgtTile::from_bytes(49, 8, &bytes).unwrap();
+        // 49.5 to 49.75 N: file rows 300 to 600 from the north, plus two each side.
+        let band = HgtTile::read_band(
+            49,
+            8,
+            std::io::Cursor::new(&bytes),
+            SRTM3_BYTES,
+            49.5,
+            49.75,
+        )
+        .unwrap();
+        assert_eq!(band.samples().len(), (602 - 298 + 1) * 1201);
+        for row_from_south in 0..1201 {
+            let north_row = 1200 - row_from_south;
+            for col in [0, 1, 600, 1200] {
+                let want = if (298..=602).contains(&north_row) {
+                    whole.raw(row_from_south, col)
+                } else {
+                    None
+                };
+                assert_eq!(
+                    band.raw(row_from_south, col),
+                    want,
+                    "row {north_row} col {col}"
+                );
+            }
+        }
+        // The southern edge row, and a file of the wrong size.
+        let edge = HgtTile::read_band(49, 8, std::io::Cursor::new(&bytes), SRTM3_BYTES, 49.0, 49.0)
+            .unwrap();
+        assert_eq!(edge.raw(0, 5), whole.raw(0, 5));
+        assert_eq!(
+            HgtTile::read_band(49, 8, std::io::Cursor::new(&bytes[..100]), 100, 49.0, 49.5),
+            Err(HgtError::WrongSize(100))
+        );
+        // A file shorter than its size said.
+        assert!(matches!(
+            HgtTile::read_band(
+                49,
+                8,
+                std::io::Cursor::new(&bytes[..1_000_000]),
+                SRTM3_BYTES,
+                49.0,
+                49.1
+            ),
+            Err(HgtError::WrongSize(_))
+        ));
     }
 
     #[test]
