@@ -1,6 +1,7 @@
 //! The whole Karlsruhe-Kirchfeld scene (2,995 buildings and 31 parts on the SRTM ground of their
 //! extent), from parsed OSM records to GLB bytes, and the OSM parsing before it.
-//! Reads `osm/karlsruhe-kirchfeld.osm.pbf` and `dem/N49E008.hgt` from `CITYMESH_DATA_DIR`
+//! Reads `osm/karlsruhe-kirchfeld.osm.pbf`, `osm/karlsruhe-kirchfeld.overpass.json` and
+//! `dem/N49E008.hgt` from `CITYMESH_DATA_DIR`
 //! (default `../shared/data`).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
@@ -88,6 +89,12 @@ fn kirchfeld(c: &mut Criterion) {
             b.iter(|| scene.encode(Placement::LocalEnu, black_box(encoding)).bytes);
         });
     }
+    // The Overpass JSON `citymesh scene` and Overpass answers bring: elements taken over as
+    // they are parsed, then assembled into buildings.
+    let json = read("osm/karlsruhe-kirchfeld.overpass.json");
+    c.bench_function("kirchfeld_overpass_json_read", |b| {
+        b.iter(|| read_buildings(black_box(&json)).unwrap().buildings.len());
+    });
     c.bench_function("kirchfeld_pbf_parse_and_cluster", |b| {
         b.iter(|| {
             let osm = read_buildings(black_box(&pbf)).unwrap();
