@@ -26,6 +26,10 @@ UNKNOWN = 128 / 255
 
 def load(folder):
     """Images (uint8, N x 4 x 64 x 64; mask 128 where unknown) and labels of a rendered set."""
+    cache = os.path.join(folder, "crops.npz")
+    if os.path.exists(cache) and os.path.getmtime(cache) >= os.path.getmtime(os.path.join(folder, "labels.csv")):
+        z = np.load(cache)
+        return z["x"], z["y"]
     rows = list(csv.DictReader(open(os.path.join(folder, "labels.csv"))))
     x = np.empty((len(rows), 4, SIZE, SIZE), dtype=np.uint8)
     y = np.empty(len(rows), dtype=np.int64)
@@ -35,13 +39,14 @@ def load(folder):
         x[i, :3] = a[:, :, :3].transpose(2, 0, 1)
         x[i, 3] = a[:, :, 3] if a.shape[2] == 4 else 128
         y[i] = CLASSES.index(r["class"])
+    np.savez(cache, x=x, y=y)
     return x, y
 
 
 class RoofNet(nn.Module):
     """A small VGG-style CNN with batch norm and global average pooling."""
 
-    def __init__(self, width=(16, 32, 64, 128)):
+    def __init__(self, width=(16, 32, 64, 128), spatial=False):
         super().__init__()
         c1, c2, c3, c4 = width
 
@@ -54,15 +59,21 @@ class RoofNet(nn.Module):
             *block(c2, c3), *block(c3, c3), nn.MaxPool2d(2),   # 8
             *block(c3, c4),
         )
-        self.head = nn.Sequential(nn.Dropout(0.3), nn.Linear(c4, 3))
+        # With `spatial`, the head also sees the features averaged over each quarter of the
+        # crop: crops are aligned (long side horizontal), so where a feature lies says something.
+        self.spatial = spatial
+        self.head = nn.Sequential(nn.Dropout(0.3), nn.Linear(c4 * (5 if spatial else 1), 3))
         self.register_buffer("mean", torch.tensor([0.45, 0.45, 0.45, 0.5]).view(1, 4, 1, 1))
         self.register_buffer("scale", torch.tensor([0.25, 0.25, 0.25, 0.5]).view(1, 4, 1, 1))
 
     def forward(self, x):
         x = (x - self.mean) / self.scale
         x = self.features(x)
-        x = x.mean(dim=(2, 3))
-        return self.head(x)
+        pooled = x.mean(dim=(2, 3))
+        if self.spatial:
+            quarters = F.adaptive_avg_pool2d(x, 2).flatten(1)
+            pooled = torch.cat([pooled, quarters], dim=1)
+        return self.head(pooled)
 
 
 class WithSoftmax(nn.Module):
@@ -74,12 +85,20 @@ class WithSoftmax(nn.Module):
         return torch.softmax(self.net(crops), dim=1)
 
 
-def augment(xb, gen):
-    """Random dihedral turn, colour jitter, grey, blur-free noise, shift, and hidden masks."""
+def augment(xb, gen, symmetry="dihedral"):
+    """Random turn and flip, colour jitter, grey, blur-free noise, shift, and hidden masks.
+
+    With symmetry "rect", crops with a known footprint only get the turns and flips of a
+    rectangle (their long side stays horizontal); crops without one get all 8."""
     n = xb.shape[0]
     x = xb.float() / 255.0
     k = int(torch.randint(0, 4, (1,), generator=gen))
-    x = torch.rot90(x, k, dims=(2, 3))
+    turned = torch.rot90(x, k, dims=(2, 3))
+    if symmetry == "rect" and k % 2 == 1:
+        known = (x[:, 3:] != UNKNOWN).any(dim=(1, 2, 3)).view(n, 1, 1, 1)
+        x = torch.where(known, torch.rot90(x, k - 1, dims=(2, 3)), turned)
+    else:
+        x = turned
     if torch.rand(1, generator=gen) < 0.5:
         x = torch.flip(x, dims=(3,))
     rgb, mask = x[:, :3], x[:, 3:]
@@ -130,6 +149,9 @@ def main():
     ap.add_argument("--epochs", type=int, default=20)
     ap.add_argument("--batch", type=int, default=128)
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--symmetry", choices=["dihedral", "rect"], default="dihedral")
+    ap.add_argument("--spatial", action="store_true", help="a head that also sees the crop's quarters")
+    ap.add_argument("--width", default="16,32,64,128")
     args = ap.parse_args()
 
     torch.manual_seed(args.seed)
@@ -140,7 +162,7 @@ def main():
     x, y = load(args.train)
     xt, yt = load(args.test)
     print(f"train {len(x)} crops, test {len(xt)} crops", flush=True)
-    net = RoofNet()
+    net = RoofNet(tuple(int(w) for w in args.width.split(",")), spatial=args.spatial)
     params = sum(p.numel() for p in net.parameters())
     print(f"{params} parameters", flush=True)
     steps = args.epochs * (len(x) // args.batch)
@@ -154,7 +176,7 @@ def main():
         total, correct, loss_sum = 0, 0, 0.0
         for i in range(0, len(order) - args.batch + 1, args.batch):
             idx = order[i:i + args.batch]
-            xb = augment(torch.from_numpy(x[idx]), gen)
+            xb = augment(torch.from_numpy(x[idx]), gen, args.symmetry)
             yb = torch.from_numpy(y[idx])
             logits = net(xb)
             loss = F.cross_entropy(logits, yb, label_smoothing=0.05)
