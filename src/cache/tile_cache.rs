@@ -155,11 +155,15 @@ impl TileCache {
         let level = AtomicU8::new(0);
         // Set when the data changed while this tile was generated.
         let outdated = AtomicBool::new(false);
-        // The invalidation epoch when generation started (only set when this call generates).
+        // The invalidation epoch when this call started looking past memory (only set when it
+        // does): a row read from SQLite just before an invalidation deleted it must not land in
+        // memory after the invalidation cleared memory, any more than a tile generated meanwhile.
         let started = AtomicU64::new(u64::MAX);
         let result = self
             .memory
             .try_get_with(key, async {
+                let epoch = self.epoch.load(Ordering::SeqCst);
+                started.store(epoch, Ordering::SeqCst);
                 if let Some(stored) = self.store.get(&key, &self.data_version).await? {
                     self.metrics.cache("memory", false);
                     self.metrics.cache("sqlite", true);
@@ -173,8 +177,6 @@ impl TileCache {
                 self.metrics.cache("memory", false);
                 self.metrics.cache("sqlite", false);
                 level.store(2, Ordering::Relaxed);
-                let epoch = self.epoch.load(Ordering::SeqCst);
-                started.store(epoch, Ordering::SeqCst);
                 let (bytes, stats) = generate().await?;
                 let etag = etag_of(&bytes);
                 if self.epoch.load(Ordering::SeqCst) == epoch {
@@ -195,7 +197,7 @@ impl TileCache {
         if outdated.load(Ordering::SeqCst) {
             self.memory.invalidate(&key).await;
         } else if start != u64::MAX && self.epoch.load(Ordering::SeqCst) != start {
-            // An invalidation ran between the check above and the tile landing in memory (or its
+            // An invalidation ran between the start above and the tile landing in memory (or its
             // row in SQLite, after the invalidation's delete): neither copy may outlive it. The
             // tile is still served to this request, as when generation itself overlapped.
             self.memory.invalidate(&key).await;

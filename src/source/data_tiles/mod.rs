@@ -22,7 +22,7 @@ use citymesh_core::osm::{BuildingRecord, Repaired, Skipped, read_buildings};
 use data_tile::{MAX_DATA_TILES, affected_area, data_tiles_for};
 use futures_util::future::BoxFuture;
 use std::collections::HashSet;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use store::now_secs;
 use tokio::sync::broadcast;
@@ -47,6 +47,10 @@ pub struct DataTileSource {
     parsed: moka::future::Cache<TileCoord, Arc<ParsedDataTile>>,
     sets: moka::future::Cache<Vec<TileCoord>, Arc<BuildingSet>>,
     refreshing: Arc<Mutex<HashSet<TileCoord>>>,
+    /// Counts refreshes that replaced stored data. A parse or a building set made while one ran
+    /// may hold the old data: it is answered, but not kept (moka would otherwise insert it after
+    /// the refresh's invalidation).
+    version: Arc<AtomicU64>,
     metrics: Arc<Metrics>,
     changes: broadcast::Sender<DataChanged>,
 }
@@ -76,6 +80,7 @@ impl DataTileSource {
                 .support_invalidation_closures()
                 .build(),
             refreshing: Arc::new(Mutex::new(HashSet::new())),
+            version: Arc::new(AtomicU64::new(0)),
             metrics,
             changes: broadcast::channel(CHANGE_CAPACITY).0,
         })
@@ -89,6 +94,7 @@ impl DataTileSource {
                 max: MAX_DATA_TILES,
             });
         }
+        let version = self.version.load(Ordering::SeqCst);
         let parsed =
             futures_util::future::try_join_all(keys.iter().map(|t| self.data_tile(*t))).await?;
         let missing: Vec<String> = keys
@@ -116,6 +122,9 @@ impl DataTileSource {
             })
             .await
             .map_err(|e: Arc<SourceError>| (*e).clone())?;
+        if self.version.load(Ordering::SeqCst) != version {
+            self.sets.invalidate(&keys).await;
+        }
         let origin = if missing.is_empty() {
             "stored".to_owned()
         } else {
@@ -149,6 +158,7 @@ impl DataTileSource {
 
     async fn data_tile(&self, t: TileCoord) -> Result<Arc<ParsedDataTile>, SourceError> {
         let loaded = AtomicBool::new(false);
+        let version = self.version.load(Ordering::SeqCst);
         let result = self
             .parsed
             .try_get_with(t, async {
@@ -183,6 +193,8 @@ impl DataTileSource {
             .map_err(|e: Arc<SourceError>| (*e).clone());
         if !loaded.load(Ordering::Relaxed) {
             self.metrics.cache("osm_memory", true);
+        } else if self.version.load(Ordering::SeqCst) != version {
+            self.parsed.invalidate(&t).await;
         }
         // Stale data is served now and refreshed in the background.
         if let Ok(p) = &result
@@ -211,7 +223,8 @@ impl DataTileSource {
             self.metrics.clone(),
             self.changes.clone(),
         );
-        let (parsed, sets) = (self.parsed.clone(), self.sets.clone());
+        let (parsed, sets, version) =
+            (self.parsed.clone(), self.sets.clone(), self.version.clone());
         // The mark is cleared when the task ends, whatever happens.
         let done = RefreshDone(self.refreshing.clone(), t);
         tokio::spawn(async move {
@@ -224,10 +237,12 @@ impl DataTileSource {
                 Ok(body) => match store.put(&t, &body, DataOrigin::Overpass).await {
                     Ok(changed) if !changed => {
                         // Read back with its new fetch time, so it is not stale any more.
+                        version.fetch_add(1, Ordering::SeqCst);
                         parsed.invalidate(&t).await;
                         tracing::debug!(tile = ?t, "OSM data refreshed, unchanged");
                     }
                     Ok(_) => {
+                        version.fetch_add(1, Ordering::SeqCst);
                         parsed.invalidate(&t).await;
                         let _ = sets.invalidate_entries_if(move |k, _| k.contains(&t));
                         tracing::info!(tile = ?t, "OSM data changed");
