@@ -147,20 +147,5 @@ pub async fn post_scene(
 
 /// The features' extent grown by [`MARGIN_M`].
 fn extent_with_margin(records: &[citymesh_core::osm::BuildingRecord]) -> Option<GeoBbox> {
-    let mut e = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
-    for n in records
-        .iter()
-        .flat_map(|r| &r.outers)
-        .flat_map(|r| &r.nodes)
-    {
-        e = [
-            e[0].min(n.lon),
-            e[1].min(n.lat),
-            e[2].max(n.lon),
-            e[3].max(n.lat),
-        ];
-    }
-    GeoBbox::new(e[0], e[1], e[2], e[3])
-        .ok()
-        .map(|b| b.grown_by_metres(MARGIN_M))
+    citymesh_core::building::cluster::records_extent(records).map(|b| b.grown_by_metres(MARGIN_M))
 }

@@ -2,6 +2,7 @@
 //! that share an OSM node touch, so their hidden walls are removed together; a `building:part`
 //! inside a `building` outline is cut out of it. A cluster is never split between tiles.
 
+use crate::geo::GeoBbox;
 use crate::osm::{BuildingRecord, RingNode};
 use foldhash::HashMap;
 
@@ -79,6 +80,15 @@ pub fn record_bounds(b: &BuildingRecord) -> [f64; 4] {
         [f64::MAX, f64::MAX, f64::MIN, f64::MIN],
         |[a, b, c, d], p| [a.min(p.lon), b.min(p.lat), c.max(p.lon), d.max(p.lat)],
     )
+}
+
+/// The box around every outline point of `records`, or `None` when they have none.
+pub fn records_extent(records: &[BuildingRecord]) -> Option<GeoBbox> {
+    let [a, b, c, d] = records.iter().map(record_bounds).fold(
+        [f64::MAX, f64::MAX, f64::MIN, f64::MIN],
+        |[a, b, c, d], [e, f, g, h]| [a.min(e), b.min(f), c.max(g), d.max(h)],
+    );
+    GeoBbox::new(a, b, c, d).ok()
 }
 
 /// Groups records into clusters; each cluster lists record indices in ascending order, and the
