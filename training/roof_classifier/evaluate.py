@@ -3,7 +3,10 @@ and the probabilities averaged over the 8 turns and flips of each crop (citymesh
 OnnxClassifier does the same). Prints accuracy and the confusion matrix, overall and by whether
 the footprint mask was given; writes them to a JSON file for the model card.
 
-    .venv-train/bin/python training/roof_classifier/evaluate.py MODEL.onnx SET_DIR OUT.json
+    .venv-train/bin/python training/roof_classifier/evaluate.py MODEL.onnx SET_DIR OUT.json [rect]
+
+With `rect`, crops with a known footprint are averaged over the 4 turns and flips of a rectangle
+only (for a model trained with `train.py --symmetry rect`); crops without one over all 8.
 """
 
 import json
@@ -25,11 +28,18 @@ def dihedral(x):
     return out
 
 
-def predict(sess, x, batch=256):
+def predict(sess, x, batch=256, rect=False):
     probs = []
     for i in range(0, len(x), batch):
         xb = x[i:i + batch].astype(np.float32) / 255.0
-        p = np.mean([sess.run(None, {"crops": np.ascontiguousarray(v)})[0] for v in dihedral(xb)], axis=0)
+        runs = [sess.run(None, {"crops": np.ascontiguousarray(v)})[0] for v in dihedral(xb)]
+        p = np.mean(runs, axis=0)
+        if rect:
+            # dihedral() order: k = 0..3 unflipped, then k = 0..3 flipped; even k keep the
+            # long side horizontal.
+            known = xb[:, 3, 0, 0] != 128 / 255
+            p_rect = np.mean([runs[j] for j in (0, 2, 4, 6)], axis=0)
+            p = np.where(known[:, None], p_rect, p)
         probs.append(p)
     return np.concatenate(probs)
 
@@ -44,9 +54,10 @@ def report(y, p):
 
 def main():
     model, folder, out = sys.argv[1:4]
+    rect = sys.argv[4:5] == ["rect"]
     sess = ort.InferenceSession(model, providers=["CPUExecutionProvider"])
     x, y = load(folder)
-    p = predict(sess, x)
+    p = predict(sess, x, rect=rect)
     known = x[:, 3, 0, 0] != 128
     result = {"classes": CLASSES, "all": report(y, p), "with mask": report(y[known], p[known]),
               "without mask": report(y[~known], p[~known])}
