@@ -68,6 +68,15 @@ impl CellTriangle {
     }
 }
 
+/// One cell's placement heights (voids filled): the centre and the corners `[sw, se, ne, nw]`.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct GroundCell {
+    i: i64,
+    j: i64,
+    centre: f64,
+    corners: [f64; 4],
+}
+
 /// The cell holding sample-unit coordinate `u`, and the offset from its centre.
 #[inline]
 pub(crate) fn cell_of(u: f64) -> (i64, f64) {
@@ -101,6 +110,56 @@ impl ElevationModel {
             })
         })
         .unwrap_or(0.0)
+    }
+
+    /// [`ElevationModel::ground_height`], reusing the cell heights of the previous call through
+    /// `last` when the point lies in the same cell (a footprint's corners and crossings mostly
+    /// do). Gives the same bits as `ground_height`.
+    pub(crate) fn ground_height_near(
+        &self,
+        lon: f64,
+        lat: f64,
+        last: &mut Option<GroundCell>,
+    ) -> f64 {
+        let p = f64::from(self.per_degree());
+        let (i, du) = cell_of(lon * p);
+        let (j, dv) = cell_of(lat * p);
+        let cell = match *last {
+            Some(c) if c.i == i && c.j == j => c,
+            _ => {
+                let c = self.ground_cell(i, j);
+                *last = Some(c);
+                c
+            }
+        };
+        let t = CellTriangle::holding(du, dv);
+        t.height(cell.centre, cell.corners[t.a], cell.corners[t.b])
+    }
+
+    /// The heights `ground_height` reads in cell `(i, j)`: its centre and its four corners.
+    fn ground_cell(&self, i: i64, j: i64) -> GroundCell {
+        let window = self.window(i, j);
+        let value = |di: i64, dj: i64| match window[(dj + 1) as usize][(di + 1) as usize] {
+            Sample::Valid(h) => h,
+            Sample::Missing => 0.0,
+            Sample::Void => self.filled_sample(i + di, j + dj),
+        };
+        let corner = |ci: i64, cj: i64| {
+            corner_height([
+                Some(value(ci, cj)),
+                Some(value(ci + 1, cj)),
+                Some(value(ci, cj + 1)),
+                Some(value(ci + 1, cj + 1)),
+            ])
+            // Four values: never empty.
+            .unwrap_or(0.0)
+        };
+        GroundCell {
+            i,
+            j,
+            centre: value(0, 0),
+            corners: [corner(-1, -1), corner(0, -1), corner(0, 0), corner(-1, 0)],
+        }
     }
 
     fn filled_sample(&self, i: i64, j: i64) -> f64 {
@@ -170,6 +229,42 @@ impl ElevationModel {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::terrain::{HgtTile, VOID};
+    use std::sync::Arc;
+
+    #[test]
+    fn reusing_a_cell_gives_the_bits_of_ground_height() {
+        // A bumpy tile with voids, including a void block that needs the filling rule.
+        let mut s: Vec<i16> = (0..1201 * 1201).map(|k| ((k * 37) % 211) as i16).collect();
+        for k in [
+            600 * 1201 + 600,
+            600 * 1201 + 601,
+            601 * 1201 + 600,
+            5 * 1201 + 7,
+        ] {
+            s[k] = VOID;
+        }
+        let m = ElevationModel::new(vec![Arc::new(HgtTile::from_samples(49, 8, s).unwrap())]);
+        let mut last = None;
+        let mut points = Vec::new();
+        // Walks that stay in a cell for a while, cross cells, jump, and reach the file's edges.
+        for k in 0..4000 {
+            let t = f64::from(k) / 4000.0;
+            points.push((8.5 + 0.01 * t, 49.5 + 0.003 * (t * 7.0).sin()));
+        }
+        points.extend([(8.0, 49.0), (8.999, 49.999), (8.5, 49.5), (8.0058, 49.9962)]);
+        for (lon, lat) in points {
+            let near = m.ground_height_near(lon, lat, &mut last);
+            assert_eq!(
+                near.to_bits(),
+                m.ground_height(lon, lat).to_bits(),
+                "{lon} {lat}"
+            );
+        }
+        // No DEM at all: the 0 m plane.
+        let empty = ElevationModel::new(Vec::new());
+        assert_eq!(empty.ground_height_near(8.5, 49.5, &mut None), 0.0);
+    }
 
     #[test]
     fn equation_1_meets_every_vertex_of_its_triangles() {

@@ -13,8 +13,9 @@ impl ElevationModel {
         let p = f64::from(self.per_degree());
         let mut lo = f64::INFINITY;
         let mut hi = f64::NEG_INFINITY;
+        let mut cell = None;
         let mut visit = |lon: f64, lat: f64| {
-            let h = self.ground_height(lon, lat);
+            let h = self.ground_height_near(lon, lat, &mut cell);
             lo = lo.min(h);
             hi = hi.max(h);
         };
