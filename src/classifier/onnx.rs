@@ -8,12 +8,12 @@ use ort::value::Tensor;
 use std::path::Path;
 use std::sync::{Mutex, OnceLock};
 
-/// Crops per inference call at most (each run as its 8 turns and flips).
+/// Crops per inference call at most (each run in up to 8 turns and flips).
 pub const MAX_BATCH: usize = 16;
 
-/// The 8 turns and flips of a square crop: every element of the dihedral group, whose answers
-/// are averaged (the model was trained on all of them; averaging makes the answer independent of
-/// how the crop happens to be turned).
+/// The 8 turns and flips of a square crop: every element of the dihedral group. A crop without a
+/// footprint is run in all of them and the answers averaged (how it happens to be turned then
+/// says nothing).
 const TURNS: [(bool, u8); 8] = [
     (false, 0),
     (false, 1),
@@ -24,6 +24,20 @@ const TURNS: [(bool, u8); 8] = [
     (true, 2),
     (true, 3),
 ];
+
+/// The turns and flips of a rectangle: those that keep a crop's long side horizontal. A crop
+/// cut by the crop rule from a known footprint is run in these only, as the model was trained
+/// (`train.py --symmetry rect`).
+const RECTANGLE_TURNS: [(bool, u8); 4] = [(false, 0), (false, 2), (true, 0), (true, 2)];
+
+/// The turns and flips a crop is run in.
+fn turns_of(crop: &Crop) -> &'static [(bool, u8)] {
+    if crop.mask.is_some() {
+        &RECTANGLE_TURNS
+    } else {
+        &TURNS
+    }
+}
 
 /// `tensor` (C x n x n, planar) flipped left-right when `flip`, then turned `k` quarter turns.
 fn turned(tensor: &[f32], n: usize, flip: bool, k: u8, out: &mut Vec<f32>) {
@@ -109,7 +123,7 @@ impl RoofClassifier for OnnxClassifier {
         let mut out = Vec::with_capacity(crops.len());
         for batch in crops.chunks(MAX_BATCH) {
             let n = self.size * self.size;
-            let rows = batch.len() * TURNS.len();
+            let rows: usize = batch.iter().map(|c| turns_of(c).len()).sum();
             let mut input = Vec::with_capacity(rows * 4 * n);
             for crop in batch {
                 if crop.size != self.size {
@@ -119,7 +133,7 @@ impl RoofClassifier for OnnxClassifier {
                     )));
                 }
                 let tensor = crop.tensor();
-                for (flip, k) in TURNS {
+                for &(flip, k) in turns_of(crop) {
                     turned(&tensor, self.size, flip, k, &mut input);
                 }
             }
@@ -141,15 +155,24 @@ impl RoofClassifier for OnnxClassifier {
                     "unexpected output shape {shape:?}"
                 )));
             }
-            out.extend(probs.chunks_exact(3 * TURNS.len()).map(|turns| {
+            let mut rest = probs;
+            for crop in batch {
+                let count = turns_of(crop).len();
+                let Some((runs, tail)) = rest.split_at_checked(3 * count) else {
+                    return Err(ClassifierError::Model(format!(
+                        "{} probabilities for {rows} runs",
+                        probs.len() / 3
+                    )));
+                };
+                rest = tail;
                 let mut mean = [0.0f32; 3];
-                for p in turns.chunks_exact(3) {
+                for p in runs.chunks_exact(3) {
                     for k in 0..3 {
-                        mean[k] += p[k] / TURNS.len() as f32;
+                        mean[k] += p[k] / count as f32;
                     }
                 }
-                Prediction::new(mean)
-            }));
+                out.push(Prediction::new(mean));
+            }
         }
         Ok(out)
     }
@@ -179,5 +202,21 @@ mod tests {
         all.sort_by(|a, b| a.partial_cmp(b).unwrap());
         all.dedup();
         assert_eq!(all.len(), 8);
+    }
+
+    #[test]
+    fn rectangle_turns_keep_a_wide_shape_wide() {
+        // A 3 x 3 crop whose middle row is lit (a long side along x): the rectangle turns are
+        // exactly the turns of TURNS that leave it as it is.
+        let t: Vec<f32> = (0..9)
+            .map(|v| if (3..6).contains(&v) { 1.0 } else { 0.0 })
+            .collect();
+        let keeps = |flip: bool, k: u8| {
+            let mut o = Vec::new();
+            turned(&t, 3, flip, k, &mut o);
+            o == t
+        };
+        let kept: Vec<(bool, u8)> = TURNS.into_iter().filter(|&(f, k)| keeps(f, k)).collect();
+        assert_eq!(kept, RECTANGLE_TURNS);
     }
 }
