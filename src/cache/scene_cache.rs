@@ -8,6 +8,7 @@ use crate::generation_stats::GenerationStats;
 use bytes::Bytes;
 use std::future::Future;
 use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// A generated box scene: its GLB and what went into it.
 #[derive(Clone, Debug)]
@@ -18,14 +19,18 @@ pub struct CachedScene {
 
 pub struct SceneCache {
     memory: moka::future::Cache<TileKey, CachedScene>,
+    /// The tile cache's invalidation count: a scene generated while an invalidation ran is
+    /// answered but not kept, as a tile is.
+    epoch: Arc<AtomicU64>,
 }
 
 /// Bytes an entry costs beyond its GLB (figures, ids of skipped buildings, the entry).
 const ENTRY_OVERHEAD: usize = 4_096;
 
 impl SceneCache {
-    pub fn new(memory_bytes: u64) -> Self {
+    pub fn new(memory_bytes: u64, epoch: Arc<AtomicU64>) -> Self {
         Self {
+            epoch,
             memory: moka::future::Cache::builder()
                 .max_capacity(memory_bytes)
                 .weigher(|_, s: &CachedScene| {
@@ -49,6 +54,7 @@ impl SceneCache {
         E: Clone + Send + Sync + 'static,
     {
         let mut generated = false;
+        let started = self.epoch.load(Ordering::SeqCst);
         let scene = self
             .memory
             .try_get_with(key, async {
@@ -61,6 +67,9 @@ impl SceneCache {
             })
             .await
             .map_err(|e: Arc<E>| (*e).clone())?;
+        if generated && self.epoch.load(Ordering::SeqCst) != started {
+            self.memory.invalidate(&key).await;
+        }
         Ok((scene, !generated))
     }
 

@@ -92,15 +92,17 @@ impl TileCache {
             })
             .support_invalidation_closures()
             .build();
+        let epoch = Arc::new(AtomicU64::new(0));
         Self {
             memory,
             store,
             data_version: Arc::from(data_version),
             metrics,
-            epoch: Arc::new(AtomicU64::new(0)),
+            // A quarter of the memory budget again for box scenes, which count the same
+            // invalidations.
+            scenes: SceneCache::new(memory_bytes / 4, epoch.clone()),
+            epoch,
             writes: TaskTracker::new(),
-            // A quarter of the memory budget again for box scenes.
-            scenes: SceneCache::new(memory_bytes / 4),
         }
     }
 

@@ -79,7 +79,7 @@ fn latency_buckets() -> impl Iterator<Item = f64> {
 impl Default for Metrics {
     fn default() -> Self {
         let mut registry = Registry::with_prefix("citymesh");
-        let requests = Arc::new(RequestMetrics::new());
+        let requests = Arc::new(RequestMetrics::default());
         let cache = Family::<CacheLabels, Counter>::default();
         let upstream = Family::<UpstreamLabels, Counter>::default();
         let generations = Counter::default();

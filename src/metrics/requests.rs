@@ -42,7 +42,7 @@ impl RouteStats {
 }
 
 /// Requests by route (the matched pattern, so the routes are few) and status.
-#[derive(Debug, Default)]
+#[derive(Debug)]
 pub struct RequestMetrics {
     bounds: Vec<f64>,
     routes: RwLock<HashMap<Arc<str>, Arc<RouteStats>>>,
@@ -54,14 +54,16 @@ impl std::fmt::Debug for RouteStats {
     }
 }
 
-impl RequestMetrics {
-    pub fn new() -> Self {
+impl Default for RequestMetrics {
+    fn default() -> Self {
         Self {
             bounds: bounds(),
             routes: RwLock::default(),
         }
     }
+}
 
+impl RequestMetrics {
     fn stats(&self, route: &str) -> Arc<RouteStats> {
         if let Some(s) = self
             .routes
@@ -180,7 +182,7 @@ mod tests {
 
     #[test]
     fn counts_by_route_and_status_and_buckets_latency() {
-        let m = RequestMetrics::new();
+        let m = RequestMetrics::default();
         m.record("/tiles/{z}/{x}/{y}", 200, Duration::from_micros(300));
         m.record("/tiles/{z}/{x}/{y}", 200, Duration::from_millis(3));
         m.record("/tiles/{z}/{x}/{y}", 404, Duration::from_millis(40));
