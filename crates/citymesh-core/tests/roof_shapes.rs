@@ -307,7 +307,7 @@ fn roof_with(shape: RoofShape, parameter: Option<f64>) -> Vec<[i64; 3]> {
     )
     .with_heights(TOP, ROOF);
     let volume = Volume {
-        footprint,
+        footprint: std::borrow::Cow::Owned(footprint),
         roof: 0,
         floor: 0.0,
         wall_colour: Rgb(0, 0, 0),

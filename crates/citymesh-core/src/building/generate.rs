@@ -17,6 +17,7 @@ use crate::mesh::{Mesh, check_closed};
 use crate::osm::{BuildingRecord, OsmId, Ring};
 use crate::terrain::ElevationModel;
 use geo::{BooleanOps, Coord, LineString, MultiPolygon, Polygon};
+use std::borrow::Cow;
 
 /// What every building of a scene is generated against.
 pub struct BuildingContext<'a> {
@@ -108,10 +109,13 @@ pub fn generate_cluster(
             let surface = surface.with_heights(top, params.roof_height);
 
             // Outline minus its parts, then truncated at the scene border.
-            let mut pieces = vec![footprint.clone()];
+            let mut pieces = vec![Cow::Borrowed(footprint)];
             if !parts.is_empty() {
                 let cut: Vec<&Footprint> = parts.iter().flat_map(|q| &q.footprints).collect();
-                pieces = subtract(footprint, &cut);
+                pieces = subtract(footprint, &cut)
+                    .into_iter()
+                    .map(Cow::Owned)
+                    .collect();
                 if pieces.is_empty() {
                     stats.outlines_covered_by_parts += 1;
                 }
@@ -120,6 +124,7 @@ pub fn generate_cluster(
                 pieces = pieces
                     .iter()
                     .flat_map(|f| truncate(f, &clip, ctx.frame))
+                    .map(Cow::Owned)
                     .collect();
             }
             if pieces.is_empty() {

@@ -18,11 +18,13 @@ use super::triangulate::triangulate;
 use super::walls::{SAME_HEIGHT, WallEnd, push_wall_piece};
 use crate::mesh::{FaceStyle, Material, Mesh, Rgb};
 use foldhash::HashMap;
+use std::borrow::Cow;
 
 /// One closed volume: a footprint piece, the roof over it and the floor height.
 #[derive(Debug, Clone)]
-pub struct Volume {
-    pub footprint: Footprint,
+pub struct Volume<'f> {
+    /// The piece: borrowed when it is a whole outline, owned when parts or the scene border cut it.
+    pub footprint: Cow<'f, Footprint>,
     /// Index of the roof in the group's roof list (pieces of one building share a roof).
     pub roof: usize,
     /// Height of the floor, metres in the local frame.
@@ -53,7 +55,7 @@ struct Partner {
 }
 
 /// Adds the volumes of one group to the mesh.
-pub fn mesh_group(volumes: &[Volume], roofs: &[RoofSurface], mesh: &mut Mesh) -> GroupReport {
+pub fn mesh_group(volumes: &[Volume<'_>], roofs: &[RoofSurface], mesh: &mut Mesh) -> GroupReport {
     let mut report = GroupReport::default();
     let segments: Vec<_> = roofs.iter().map(RoofSurface::dividing_segments).collect();
     let mut divisions: Vec<_> = volumes
@@ -182,11 +184,11 @@ struct RingPoint {
 #[allow(clippy::too_many_arguments)]
 fn mesh_volume(
     vi: usize,
-    v: &Volume,
+    v: &Volume<'_>,
     roof: &RoofSurface,
     div: &super::boundary::Divisions,
     partner: &HashMap<(usize, usize, usize), Partner>,
-    volumes: &[Volume],
+    volumes: &[Volume<'_>],
     roofs: &[RoofSurface],
     node_heights: &HashMap<NodeKey, Vec<f64>>,
     mesh: &mut Mesh,

@@ -47,67 +47,114 @@ pub struct BuildingTags {
     pub invalid: Vec<&'static str>,
 }
 
+/// The keys [`BuildingTags::read`] looks at.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Key {
+    Building,
+    BuildingPart,
+    Height,
+    MinHeight,
+    Levels,
+    MinLevel,
+    RoofLevels,
+    RoofHeight,
+    RoofAngle,
+    RoofDirection,
+    RoofShape,
+    RoofOrientation,
+    BuildingColour,
+    RoofColour,
+    BuildingMaterial,
+    RoofMaterial,
+}
+
+impl Key {
+    const COUNT: usize = Key::RoofMaterial as usize + 1;
+
+    /// The key an OSM tag key names, if it is one of them.
+    fn of(key: &str) -> Option<Self> {
+        // Most other keys (addr:*, name, source, ...) fail on the first byte.
+        if !matches!(key.as_bytes().first(), Some(b'b' | b'h' | b'm' | b'r')) {
+            return None;
+        }
+        Some(match key {
+            "building" => Key::Building,
+            "building:part" => Key::BuildingPart,
+            "height" => Key::Height,
+            "min_height" => Key::MinHeight,
+            "building:levels" => Key::Levels,
+            "building:min_level" => Key::MinLevel,
+            "roof:levels" => Key::RoofLevels,
+            "roof:height" => Key::RoofHeight,
+            "roof:angle" => Key::RoofAngle,
+            "roof:direction" => Key::RoofDirection,
+            "roof:shape" => Key::RoofShape,
+            "roof:orientation" => Key::RoofOrientation,
+            "building:colour" => Key::BuildingColour,
+            "roof:colour" => Key::RoofColour,
+            "building:material" => Key::BuildingMaterial,
+            "roof:material" => Key::RoofMaterial,
+            _ => return None,
+        })
+    }
+
+    /// The OSM key, as reported among invalid tags.
+    fn name(self) -> &'static str {
+        match self {
+            Key::Building => "building",
+            Key::BuildingPart => "building:part",
+            Key::Height => "height",
+            Key::MinHeight => "min_height",
+            Key::Levels => "building:levels",
+            Key::MinLevel => "building:min_level",
+            Key::RoofLevels => "roof:levels",
+            Key::RoofHeight => "roof:height",
+            Key::RoofAngle => "roof:angle",
+            Key::RoofDirection => "roof:direction",
+            Key::RoofShape => "roof:shape",
+            Key::RoofOrientation => "roof:orientation",
+            Key::BuildingColour => "building:colour",
+            Key::RoofColour => "roof:colour",
+            Key::BuildingMaterial => "building:material",
+            Key::RoofMaterial => "roof:material",
+        }
+    }
+}
+
 impl BuildingTags {
     pub fn read(tags: &Tags) -> Self {
         // One pass over the tags picks out the keys read below (cheaper than a lookup per key).
-        const KEYS: [&str; 16] = [
-            "building",
-            "building:part",
-            "height",
-            "min_height",
-            "building:levels",
-            "building:min_level",
-            "roof:levels",
-            "roof:height",
-            "roof:angle",
-            "roof:direction",
-            "roof:shape",
-            "roof:orientation",
-            "building:colour",
-            "roof:colour",
-            "building:material",
-            "roof:material",
-        ];
-        let mut found: [Option<&String>; KEYS.len()] = [None; KEYS.len()];
+        let mut found: [Option<&String>; Key::COUNT] = [None; Key::COUNT];
         for (key, value) in tags {
-            if let Some(k) = KEYS
-                .iter()
-                .position(|k| k.len() == key.len() && *k == key.as_str())
-            {
-                found[k] = Some(value);
+            if let Some(k) = Key::of(key) {
+                found[k as usize] = Some(value);
             }
         }
-        // Keys are few and tags per building a handful: comparing by length first is quick.
-        let get = |key: &str| {
-            KEYS.iter()
-                .zip(&found)
-                .find(|(k, _)| k.len() == key.len() && **k == key)
-                .and_then(|(_, v)| *v)
-        };
+        let get = |key: Key| found[key as usize];
         let mut t = BuildingTags {
-            building_type: get("building")
+            building_type: get(Key::Building)
                 .filter(|v| v.as_str() != "no")
-                .or_else(|| get("building:part"))
+                .or_else(|| get(Key::BuildingPart))
                 .cloned()
                 .unwrap_or_default(),
             ..Default::default()
         };
-        let mut take = |key: &'static str, parse: fn(&str) -> Option<f64>| -> Option<f64> {
+        let mut take = |key: Key, parse: fn(&str) -> Option<f64>| -> Option<f64> {
             let value = get(key)?;
             let parsed = parse(value);
             if parsed.is_none() {
-                t.invalid.push(key);
+                t.invalid.push(key.name());
             }
             parsed
         };
-        let height = take("height", parse_length);
-        let min_height = take("min_height", parse_length);
-        let levels = take("building:levels", parse_levels);
-        let min_level = take("building:min_level", parse_levels);
-        let roof_levels = take("roof:levels", parse_levels);
-        let roof_height = take("roof:height", parse_length);
-        let roof_angle = take("roof:angle", parse_angle);
-        let direction = take("roof:direction", parse_direction);
+        let height = take(Key::Height, parse_length);
+        let min_height = take(Key::MinHeight, parse_length);
+        let levels = take(Key::Levels, parse_levels);
+        let min_level = take(Key::MinLevel, parse_levels);
+        let roof_levels = take(Key::RoofLevels, parse_levels);
+        let roof_height = take(Key::RoofHeight, parse_length);
+        let roof_angle = take(Key::RoofAngle, parse_angle);
+        let direction = take(Key::RoofDirection, parse_direction);
         t.height = height;
         t.min_height = min_height;
         t.levels = levels;
@@ -116,31 +163,29 @@ impl BuildingTags {
         t.roof_height = roof_height;
         t.roof_angle = roof_angle;
         t.direction = direction;
-        t.roof_shape = tags
-            .get("roof:shape")
-            .map(|v| match RoofShape::from_tag(v) {
-                Some(s) => ShapeTag::Known(s),
-                None => ShapeTag::Unsupported(v.clone()),
-            });
-        match get("roof:orientation").map(|v| v.trim()) {
+        t.roof_shape = get(Key::RoofShape).map(|v| match RoofShape::from_tag(v) {
+            Some(s) => ShapeTag::Known(s),
+            None => ShapeTag::Unsupported(v.clone()),
+        });
+        match get(Key::RoofOrientation).map(|v| v.trim()) {
             None => {}
             Some("along") => t.orientation = Orientation::Along,
             Some("across") => t.orientation = Orientation::Across,
             Some(_) => t.invalid.push("roof:orientation"),
         }
         for (key, slot) in [
-            ("building:colour", &mut t.building_colour),
-            ("roof:colour", &mut t.roof_colour),
+            (Key::BuildingColour, &mut t.building_colour),
+            (Key::RoofColour, &mut t.roof_colour),
         ] {
             if let Some(v) = get(key) {
                 *slot = parse_colour(v);
                 if slot.is_none() {
-                    t.invalid.push(key);
+                    t.invalid.push(key.name());
                 }
             }
         }
-        t.building_material = get("building:material").cloned();
-        t.roof_material = get("roof:material").cloned();
+        t.building_material = get(Key::BuildingMaterial).cloned();
+        t.roof_material = get(Key::RoofMaterial).cloned();
         t
     }
 }
@@ -234,6 +279,44 @@ pub fn parse_colour(value: &str) -> Option<Rgb> {
 mod tests {
     use super::*;
     use rstest::rstest;
+
+    #[test]
+    fn every_key_is_found_by_its_name_and_nothing_else_is() {
+        let all = [
+            Key::Building,
+            Key::BuildingPart,
+            Key::Height,
+            Key::MinHeight,
+            Key::Levels,
+            Key::MinLevel,
+            Key::RoofLevels,
+            Key::RoofHeight,
+            Key::RoofAngle,
+            Key::RoofDirection,
+            Key::RoofShape,
+            Key::RoofOrientation,
+            Key::BuildingColour,
+            Key::RoofColour,
+            Key::BuildingMaterial,
+            Key::RoofMaterial,
+        ];
+        assert_eq!(all.len(), Key::COUNT);
+        for (i, key) in all.into_iter().enumerate() {
+            assert_eq!(key as usize, i);
+            assert_eq!(Key::of(key.name()), Some(key));
+        }
+        for other in [
+            "",
+            "b",
+            "name",
+            "addr:street",
+            "roof:shapes",
+            "Height",
+            "building:",
+        ] {
+            assert_eq!(Key::of(other), None, "{other}");
+        }
+    }
 
     #[rstest]
     #[case("12", Some(12.0))]

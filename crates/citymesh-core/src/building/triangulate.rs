@@ -46,29 +46,37 @@ pub fn triangulate(
         }
     }
     let origin = points[0];
-    let local: Vec<Point2<f64>> = points
-        .iter()
-        .map(|p| Point2::new(flush(p[0] - origin[0]), flush(p[1] - origin[1])))
-        .collect();
-    let mut edges: Vec<[usize; 2]> = Vec::with_capacity(points.len() + constraints.len());
-    for r in rings {
-        for i in r.clone() {
-            let next = if i + 1 == r.end { r.start } else { i + 1 };
-            edges.push([i, next]);
+    // The points (near the origin, where spade's predicates are most exact) and the edges to
+    // keep; made again in the rare case the bulk load cannot be used, rather than copied for it.
+    let local = || -> Vec<Point2<f64>> {
+        points
+            .iter()
+            .map(|p| Point2::new(flush(p[0] - origin[0]), flush(p[1] - origin[1])))
+            .collect()
+    };
+    let edges = || {
+        let mut edges: Vec<[usize; 2]> = Vec::with_capacity(points.len() + constraints.len());
+        for r in rings {
+            for i in r.clone() {
+                let next = if i + 1 == r.end { r.start } else { i + 1 };
+                edges.push([i, next]);
+            }
         }
-    }
-    edges.extend(constraints.iter().filter(|[a, b]| a != b));
+        edges.extend(constraints.iter().filter(|[a, b]| a != b));
+        edges
+    };
     let mut dropped = 0;
-    let n = local.len();
+    let n = points.len();
     let cdt = ConstrainedDelaunayTriangulation::<Point2<f64>>::try_bulk_load_cdt(
-        local.clone(),
-        edges.clone(),
+        local(),
+        edges(),
         |_| dropped += 1,
     );
     let cdt = match cdt {
         Ok(cdt) if cdt.num_vertices() == n => cdt,
         // Duplicate points shift spade's indices: insert one by one instead.
         _ => {
+            let (local, edges) = (local(), edges());
             dropped = 0;
             let mut cdt = ConstrainedDelaunayTriangulation::<Point2<f64>>::new();
             let mut handles = Vec::with_capacity(n);

@@ -90,10 +90,7 @@ pub fn assemble(
     let vertices = layout.vertex_count();
     if vertices == 0 {
         root.insert("scene".into(), json!(0));
-        root.insert(
-            "scenes".into(),
-            json!([{"name": "citymesh", "extras": extras}]),
-        );
+        root.insert("scenes".into(), scenes(None, extras));
         return Document {
             json: serde_json::to_vec(&Value::Object(root)).unwrap_or_default(),
             bin: Vec::new(),
@@ -202,10 +199,7 @@ pub fn assemble(
     );
     root.insert("nodes".into(), json!([node_json]));
     root.insert("scene".into(), json!(0));
-    root.insert(
-        "scenes".into(),
-        json!([{"name": "citymesh", "nodes": [0], "extras": extras}]),
-    );
+    root.insert("scenes".into(), scenes(Some(0), extras));
     Document {
         json: serde_json::to_vec(&Value::Object(root)).unwrap_or_default(),
         bin,
@@ -386,6 +380,17 @@ fn node_matrix(node: &NodePlacement, q: Option<Quantization>) -> Option<[f64; 16
             1.0,
         ]),
     }
+}
+
+/// The one scene, with its node (if any) and `extras` (moved in: `json!` would copy the id list).
+fn scenes(node: Option<usize>, extras: Value) -> Value {
+    let mut scene = Map::new();
+    scene.insert("name".into(), json!("citymesh"));
+    if let Some(node) = node {
+        scene.insert("nodes".into(), json!([node]));
+    }
+    scene.insert("extras".into(), extras);
+    Value::Array(vec![Value::Object(scene)])
 }
 
 /// Where the content sits and which buildings it holds, for clients.
