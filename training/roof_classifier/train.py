@@ -46,7 +46,7 @@ def load(folder):
 class RoofNet(nn.Module):
     """A small VGG-style CNN with batch norm and global average pooling."""
 
-    def __init__(self, width=(16, 32, 64, 128), spatial=False):
+    def __init__(self, width=(16, 32, 64, 128), spatial=False, deep=False):
         super().__init__()
         c1, c2, c3, c4 = width
 
@@ -58,6 +58,8 @@ class RoofNet(nn.Module):
             *block(c1, c2), *block(c2, c2), nn.MaxPool2d(2),   # 16
             *block(c2, c3), *block(c3, c3), nn.MaxPool2d(2),   # 8
             *block(c3, c4),
+            # With `deep`, a second layer at 8 x 8 widens what each feature sees to most of the roof.
+            *(block(c4, c4) if deep else []),
         )
         # With `spatial`, the head also sees the features averaged over each quarter of the
         # crop: crops are aligned (long side horizontal), so where a feature lies says something.
@@ -152,6 +154,7 @@ def main():
     ap.add_argument("--symmetry", choices=["dihedral", "rect"], default="dihedral")
     ap.add_argument("--spatial", action="store_true", help="a head that also sees the crop's quarters")
     ap.add_argument("--width", default="16,32,64,128")
+    ap.add_argument("--deep", action="store_true", help="a second convolution at 8 x 8")
     args = ap.parse_args()
 
     torch.manual_seed(args.seed)
@@ -162,7 +165,7 @@ def main():
     x, y = load(args.train)
     xt, yt = load(args.test)
     print(f"train {len(x)} crops, test {len(xt)} crops", flush=True)
-    net = RoofNet(tuple(int(w) for w in args.width.split(",")), spatial=args.spatial)
+    net = RoofNet(tuple(int(w) for w in args.width.split(",")), spatial=args.spatial, deep=args.deep)
     params = sum(p.numel() for p in net.parameters())
     print(f"{params} parameters", flush=True)
     steps = args.epochs * (len(x) // args.batch)

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Reproduces the committed model: renders the training and test sets with citymesh, trains on CPU,
 # exports roof_classifier.onnx and writes metrics.json (quoted in MODEL_CARD.md). Run from the
-# repository root: training/roof_classifier/train.sh. Takes about 30 to 40 minutes on 2 quiet cores.
+# repository root: training/roof_classifier/train.sh. Takes about an hour on 2 quiet cores.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 data="${CITYMESH_DATA_DIR:-../shared/data}"
@@ -24,7 +24,7 @@ rm -rf "$work" && mkdir -p "$work"
   --palette holdout -o "$work/test"
 "$venv/bin/python" training/roof_classifier/train.py --train "$work/train" --test "$work/test" \
   --out training/roof_classifier/roof_classifier.onnx --metrics "$work/training.json" \
-  --symmetry rect --spatial
+  --symmetry rect --spatial --deep --width 16,32,64,192 --epochs 30
 # Accuracy as citymesh runs the model (ONNX Runtime, averaged over the rectangle's turns and
 # flips for crops with a footprint, all 8 for crops without).
 (cd training/roof_classifier && "../../$venv/bin/python" evaluate.py roof_classifier.onnx \
