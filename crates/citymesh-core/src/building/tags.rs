@@ -69,33 +69,34 @@ enum Key {
 }
 
 impl Key {
-    const COUNT: usize = Key::RoofMaterial as usize + 1;
+    const ALL: [Key; 16] = [
+        Key::Building,
+        Key::BuildingPart,
+        Key::Height,
+        Key::MinHeight,
+        Key::Levels,
+        Key::MinLevel,
+        Key::RoofLevels,
+        Key::RoofHeight,
+        Key::RoofAngle,
+        Key::RoofDirection,
+        Key::RoofShape,
+        Key::RoofOrientation,
+        Key::BuildingColour,
+        Key::RoofColour,
+        Key::BuildingMaterial,
+        Key::RoofMaterial,
+    ];
+    const COUNT: usize = Key::ALL.len();
 
     /// The key an OSM tag key names, if it is one of them.
     fn of(key: &str) -> Option<Self> {
-        // Most other keys (addr:*, name, source, ...) fail on the first byte.
+        // Most other keys (addr:*, name, source, ...) fail on the first byte; the rest compare
+        // lengths before bytes.
         if !matches!(key.as_bytes().first(), Some(b'b' | b'h' | b'm' | b'r')) {
             return None;
         }
-        Some(match key {
-            "building" => Key::Building,
-            "building:part" => Key::BuildingPart,
-            "height" => Key::Height,
-            "min_height" => Key::MinHeight,
-            "building:levels" => Key::Levels,
-            "building:min_level" => Key::MinLevel,
-            "roof:levels" => Key::RoofLevels,
-            "roof:height" => Key::RoofHeight,
-            "roof:angle" => Key::RoofAngle,
-            "roof:direction" => Key::RoofDirection,
-            "roof:shape" => Key::RoofShape,
-            "roof:orientation" => Key::RoofOrientation,
-            "building:colour" => Key::BuildingColour,
-            "roof:colour" => Key::RoofColour,
-            "building:material" => Key::BuildingMaterial,
-            "roof:material" => Key::RoofMaterial,
-            _ => return None,
-        })
+        Key::ALL.into_iter().find(|k| k.name() == key)
     }
 
     /// The OSM key, as reported among invalid tags.
@@ -282,26 +283,8 @@ mod tests {
 
     #[test]
     fn every_key_is_found_by_its_name_and_nothing_else_is() {
-        let all = [
-            Key::Building,
-            Key::BuildingPart,
-            Key::Height,
-            Key::MinHeight,
-            Key::Levels,
-            Key::MinLevel,
-            Key::RoofLevels,
-            Key::RoofHeight,
-            Key::RoofAngle,
-            Key::RoofDirection,
-            Key::RoofShape,
-            Key::RoofOrientation,
-            Key::BuildingColour,
-            Key::RoofColour,
-            Key::BuildingMaterial,
-            Key::RoofMaterial,
-        ];
-        assert_eq!(all.len(), Key::COUNT);
-        for (i, key) in all.into_iter().enumerate() {
+        assert_eq!(Key::COUNT, Key::RoofMaterial as usize + 1);
+        for (i, key) in Key::ALL.into_iter().enumerate() {
             assert_eq!(key as usize, i);
             assert_eq!(Key::of(key.name()), Some(key));
         }
