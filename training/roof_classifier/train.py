@@ -43,10 +43,23 @@ def load(folder):
     return x, y
 
 
+class Residual(nn.Module):
+    """x + a 3x3 convolution of x. Its batch norm starts at zero, so a block added to a trained
+    net starts as the identity and the net answers as before (`train.py --init`)."""
+
+    def __init__(self, c):
+        super().__init__()
+        self.body = nn.Sequential(nn.Conv2d(c, c, 3, padding=1, bias=False), nn.BatchNorm2d(c))
+        nn.init.zeros_(self.body[1].weight)
+
+    def forward(self, x):
+        return torch.relu(x + self.body(x))
+
+
 class RoofNet(nn.Module):
     """A small VGG-style CNN with batch norm and global average pooling."""
 
-    def __init__(self, width=(16, 32, 64, 128), spatial=False, deep=False):
+    def __init__(self, width=(16, 32, 64, 128), spatial=False, deep=False, residual=0):
         super().__init__()
         c1, c2, c3, c4 = width
 
@@ -60,6 +73,8 @@ class RoofNet(nn.Module):
             *block(c3, c4),
             # With `deep`, a second layer at 8 x 8 widens what each feature sees to most of the roof.
             *(block(c4, c4) if deep else []),
+            # With `residual`, that many residual blocks at 8 x 8 more.
+            *(Residual(c4) for _ in range(residual)),
         )
         # With `spatial`, the head also sees the features averaged over each quarter of the
         # crop: crops are aligned (long side horizontal), so where a feature lies says something.
@@ -87,8 +102,23 @@ class WithSoftmax(nn.Module):
         return torch.softmax(self.net(crops), dim=1)
 
 
-def augment(xb, gen, symmetry="dihedral"):
+def hue_turn(angle):
+    """N x 3 x 3 matrices turning RGB colours by `angle` (radians, shape N) about the grey axis:
+    hue changes, brightness and saturation stay."""
+    c, s = torch.cos(angle), torch.sin(angle)
+    k = 1.0 / 3.0
+    r = (1.0 / 3.0) ** 0.5
+    a = c + (1 - c) * k
+    b = k * (1 - c) - r * s
+    d = k * (1 - c) + r * s
+    return torch.stack([torch.stack([a, b, d], -1), torch.stack([d, a, b], -1), torch.stack([b, d, a], -1)], -2)
+
+
+def augment(xb, gen, symmetry="dihedral", hue=0.0):
     """Random turn and flip, colour jitter, grey, blur-free noise, shift, and hidden masks.
+
+    With `hue` > 0, that share of crops has its colours turned by a random hue angle, so roof
+    colour (which the renders tie to the class more than real roofs do) cannot decide alone.
 
     With symmetry "rect", crops with a known footprint only get the turns and flips of a
     rectangle (their long side stays horizontal); crops without one get all 8."""
@@ -115,6 +145,10 @@ def augment(xb, gen, symmetry="dihedral"):
     s = 0.6 + torch.rand(n, 1, 1, 1, generator=gen) * 0.7
     s = torch.where(torch.rand(n, 1, 1, 1, generator=gen) < 0.05, torch.zeros_like(s), s)
     rgb = grey + (rgb - grey) * s
+    if hue > 0:
+        angle = (torch.rand(n, generator=gen) * 2 - 1) * torch.pi
+        angle = torch.where(torch.rand(n, generator=gen) < hue, angle, torch.zeros_like(angle))
+        rgb = torch.einsum("nij,njhw->nihw", hue_turn(angle), rgb)
     rgb = rgb + 0.02 * torch.randn(rgb.shape, generator=gen) * torch.rand(n, 1, 1, 1, generator=gen)
     rgb = rgb.clamp(0, 1)
     # Hide a known mask now and then, so both paths keep training.
@@ -155,6 +189,10 @@ def main():
     ap.add_argument("--spatial", action="store_true", help="a head that also sees the crop's quarters")
     ap.add_argument("--width", default="16,32,64,128")
     ap.add_argument("--deep", action="store_true", help="a second convolution at 8 x 8")
+    ap.add_argument("--residual", type=int, default=0, help="residual blocks added at 8 x 8")
+    ap.add_argument("--hue", type=float, default=0.0, help="share of crops whose hue is turned at random")
+    ap.add_argument("--init", help="start from this trained state dict (train.py writes one beside --metrics)")
+    ap.add_argument("--lr", type=float, default=3e-3, help="the peak learning rate")
     args = ap.parse_args()
 
     torch.manual_seed(args.seed)
@@ -165,12 +203,18 @@ def main():
     x, y = load(args.train)
     xt, yt = load(args.test)
     print(f"train {len(x)} crops, test {len(xt)} crops", flush=True)
-    net = RoofNet(tuple(int(w) for w in args.width.split(",")), spatial=args.spatial, deep=args.deep)
+    net = RoofNet(tuple(int(w) for w in args.width.split(",")), spatial=args.spatial, deep=args.deep,
+                  residual=args.residual)
+    if args.init:
+        # Blocks the saved net does not have (--residual) start as the identity.
+        missing, unexpected = net.load_state_dict(torch.load(args.init), strict=False)
+        assert not unexpected and all(".body." in k for k in missing), (missing, unexpected)
+        print(f"starting from {args.init}; new: {len(missing)} tensors", flush=True)
     params = sum(p.numel() for p in net.parameters())
     print(f"{params} parameters", flush=True)
     steps = args.epochs * (len(x) // args.batch)
-    opt = torch.optim.AdamW(net.parameters(), lr=3e-3, weight_decay=5e-4)
-    sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=3e-3, total_steps=steps, pct_start=0.15)
+    opt = torch.optim.AdamW(net.parameters(), lr=args.lr, weight_decay=5e-4)
+    sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=args.lr, total_steps=steps, pct_start=0.15)
     started = time.time()
     step = 0
     for epoch in range(args.epochs):
@@ -179,7 +223,7 @@ def main():
         total, correct, loss_sum = 0, 0, 0.0
         for i in range(0, len(order) - args.batch + 1, args.batch):
             idx = order[i:i + args.batch]
-            xb = augment(torch.from_numpy(x[idx]), gen, args.symmetry)
+            xb = augment(torch.from_numpy(x[idx]), gen, args.symmetry, args.hue)
             yb = torch.from_numpy(y[idx])
             logits = net(xb)
             loss = F.cross_entropy(logits, yb, label_smoothing=0.05)
