@@ -4,7 +4,7 @@ probabilities), so citymesh runs it unchanged.
 
     .venv-train/bin/python training/roof_classifier/ensemble.py OUT.onnx MEMBER...
 
-Each MEMBER is `STATE.pt:WIDTH[:spatial][:deep]`: the state dict `train.py` saved beside its
+Each MEMBER is `STATE.pt:WIDTH[:spatial][:deep][:residual]`: the state dict `train.py` saved beside its
 metrics file, and the options it was trained with, e.g.
 `target/roof_classifier/a/training.pt:16,32,64,128:spatial`.
 """
@@ -29,10 +29,11 @@ class Mean(nn.Module):
 
 def member(spec):
     path, width, *flags = spec.split(":")
-    unknown = set(flags) - {"spatial", "deep"}
+    unknown = set(flags) - {"spatial", "deep", "residual"}
     if unknown:
         sys.exit(f"error: unknown option {sorted(unknown)} in {spec}")
-    net = RoofNet(tuple(int(w) for w in width.split(",")), spatial="spatial" in flags, deep="deep" in flags)
+    net = RoofNet(tuple(int(w) for w in width.split(",")), spatial="spatial" in flags, deep="deep" in flags,
+                  residual=int("residual" in flags))
     net.load_state_dict(torch.load(path, map_location="cpu"))
     return net.eval()
 
