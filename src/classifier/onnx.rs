@@ -8,8 +8,14 @@ use ort::value::Tensor;
 use std::path::Path;
 use std::sync::{Mutex, OnceLock};
 
-/// Crops per inference call at most (each run in up to 8 turns and flips).
+/// Crops per inference call at most (each run in up to 8 turns and flips at 5 shifts: 640 rows
+/// of 64 x 64 x 4 floats, 42 MB, at most).
 pub const MAX_BATCH: usize = 16;
+
+/// The shifts (rows, columns; wrapping around as numpy's `roll`) each turn is also run at: none,
+/// and 2 px each way. The crop rule centres the building only to a pixel or two and training
+/// shifted crops by up to 3 px, so averaging over these steadies the answer.
+const SHIFTS: [(isize, isize); 5] = [(0, 0), (2, 0), (-2, 0), (0, 2), (0, -2)];
 
 /// The 8 turns and flips of a square crop: every element of the dihedral group. A crop without a
 /// footprint is run in all of them and the answers averaged (how it happens to be turned then
@@ -39,9 +45,23 @@ fn turns_of(crop: &Crop) -> &'static [(bool, u8)] {
     }
 }
 
-/// `tensor` (C x n x n, planar) flipped left-right when `flip`, then turned `k` quarter turns.
-fn turned(tensor: &[f32], n: usize, flip: bool, k: u8, out: &mut Vec<f32>) {
+/// The runs of one crop: each of its turns at each shift.
+fn runs_of(crop: &Crop) -> usize {
+    turns_of(crop).len() * SHIFTS.len()
+}
+
+/// `tensor` (C x n x n, planar) shifted by `shift` (rows, columns; wrapping around), then
+/// flipped left-right when `flip`, then turned `k` quarter turns.
+fn shifted_turned(
+    tensor: &[f32],
+    n: usize,
+    shift: (isize, isize),
+    flip: bool,
+    k: u8,
+    out: &mut Vec<f32>,
+) {
     let plane = n * n;
+    let wrap = |v: usize, by: isize| (v as isize - by).rem_euclid(n as isize) as usize;
     for c in 0..tensor.len() / plane {
         let src = &tensor[c * plane..(c + 1) * plane];
         for i in 0..n {
@@ -53,7 +73,7 @@ fn turned(tensor: &[f32], n: usize, flip: bool, k: u8, out: &mut Vec<f32>) {
                     _ => (n - 1 - j, i),
                 };
                 let b = if flip { n - 1 - b } else { b };
-                out.push(src[a * n + b]);
+                out.push(src[wrap(a, shift.0) * n + wrap(b, shift.1)]);
             }
         }
     }
@@ -123,7 +143,7 @@ impl RoofClassifier for OnnxClassifier {
         let mut out = Vec::with_capacity(crops.len());
         for batch in crops.chunks(MAX_BATCH) {
             let n = self.size * self.size;
-            let rows: usize = batch.iter().map(|c| turns_of(c).len()).sum();
+            let rows: usize = batch.iter().map(runs_of).sum();
             let mut input = Vec::with_capacity(rows * 4 * n);
             for crop in batch {
                 if crop.size != self.size {
@@ -133,8 +153,10 @@ impl RoofClassifier for OnnxClassifier {
                     )));
                 }
                 let tensor = crop.tensor();
-                for &(flip, k) in turns_of(crop) {
-                    turned(&tensor, self.size, flip, k, &mut input);
+                for &shift in &SHIFTS {
+                    for &(flip, k) in turns_of(crop) {
+                        shifted_turned(&tensor, self.size, shift, flip, k, &mut input);
+                    }
                 }
             }
             let shape = [rows, 4, self.size, self.size];
@@ -157,7 +179,7 @@ impl RoofClassifier for OnnxClassifier {
             }
             let mut rest = probs;
             for crop in batch {
-                let count = turns_of(crop).len();
+                let count = runs_of(crop);
                 let Some((runs, tail)) = rest.split_at_checked(3 * count) else {
                     return Err(ClassifierError::Model(format!(
                         "{} probabilities for {rows} runs",
@@ -187,13 +209,13 @@ mod tests {
         // 2 x 2: [a b; c d] turned a quarter counter-clockwise is [b d; a c] (numpy's rot90).
         let t = [1.0, 2.0, 3.0, 4.0];
         let mut out = Vec::new();
-        turned(&t, 2, false, 1, &mut out);
+        shifted_turned(&t, 2, (0, 0), false, 1, &mut out);
         assert_eq!(out, [2.0, 4.0, 1.0, 3.0]);
         let mut all: Vec<Vec<f32>> = Vec::new();
         let t3: Vec<f32> = (0..9).map(|v| v as f32).collect();
         for (flip, k) in TURNS {
             let mut o = Vec::new();
-            turned(&t3, 3, flip, k, &mut o);
+            shifted_turned(&t3, 3, (0, 0), flip, k, &mut o);
             let mut sorted = o.clone();
             sorted.sort_by(f32::total_cmp);
             assert_eq!(sorted, t3, "a turn keeps every pixel");
@@ -205,6 +227,22 @@ mod tests {
     }
 
     #[test]
+    fn a_shift_moves_rows_down_and_columns_right_wrapping_as_numpy_roll() {
+        // 3 x 3, values 0..9 row by row; np.roll(x, (1, -1), axis=(0, 1)) is
+        // [[7 8 6] [1 2 0] [4 5 3]].
+        let t: Vec<f32> = (0..9).map(|v| v as f32).collect();
+        let mut out = Vec::new();
+        shifted_turned(&t, 3, (1, -1), false, 0, &mut out);
+        assert_eq!(out, [7.0, 8.0, 6.0, 1.0, 2.0, 0.0, 4.0, 5.0, 3.0]);
+        // Shifted first, then turned: the turn of the shifted crop.
+        let mut shifted_then_turned = Vec::new();
+        shifted_turned(&out, 3, (0, 0), true, 1, &mut shifted_then_turned);
+        let mut both = Vec::new();
+        shifted_turned(&t, 3, (1, -1), true, 1, &mut both);
+        assert_eq!(both, shifted_then_turned);
+    }
+
+    #[test]
     fn rectangle_turns_keep_a_wide_shape_wide() {
         // A 3 x 3 crop whose middle row is lit (a long side along x): the rectangle turns are
         // exactly the turns of TURNS that leave it as it is.
@@ -213,7 +251,7 @@ mod tests {
             .collect();
         let keeps = |flip: bool, k: u8| {
             let mut o = Vec::new();
-            turned(&t, 3, flip, k, &mut o);
+            shifted_turned(&t, 3, (0, 0), flip, k, &mut o);
             o == t
         };
         let kept: Vec<(bool, u8)> = TURNS.into_iter().filter(|&(f, k)| keeps(f, k)).collect();

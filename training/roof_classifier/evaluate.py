@@ -1,12 +1,14 @@
-"""Evaluates an exported roof model on a rendered set the way citymesh runs it: ONNX Runtime,
-and the probabilities averaged over the 8 turns and flips of each crop (citymesh's
-OnnxClassifier does the same). Prints accuracy and the confusion matrix, overall and by whether
+"""Evaluates an exported roof model on a rendered set: ONNX Runtime, and the probabilities
+averaged over the 8 turns and flips of each crop; with `rect shift`, the way citymesh's
+OnnxClassifier runs it. Prints accuracy and the confusion matrix, overall and by whether
 the footprint mask was given; writes them to a JSON file for the model card.
 
-    .venv-train/bin/python training/roof_classifier/evaluate.py MODEL.onnx SET_DIR OUT.json [rect]
+    .venv-train/bin/python training/roof_classifier/evaluate.py MODEL.onnx SET_DIR OUT.json [rect] [shift]
 
 With `rect`, crops with a known footprint are averaged over the 4 turns and flips of a rectangle
 only (for a model trained with `train.py --symmetry rect`); crops without one over all 8.
+With `shift`, each turn is also run with the crop shifted by 2 px each way (wrapping around),
+as citymesh does (`SHIFTS` in src/classifier/onnx.rs).
 """
 
 import json
@@ -28,7 +30,16 @@ def dihedral(x):
     return out
 
 
-def predict(sess, x, batch=256, rect=False):
+# The shifts (rows, columns) citymesh runs each turn at.
+SHIFTS = [(0, 0), (2, 0), (-2, 0), (0, 2), (0, -2)]
+
+
+def predict(sess, x, batch=256, rect=False, shifts=((0, 0),)):
+    """Class probabilities of crops, averaged over their turns and flips at each of `shifts`."""
+    return np.mean([predict_turns(sess, np.roll(x, s, axis=(2, 3)), batch, rect) for s in shifts], axis=0)
+
+
+def predict_turns(sess, x, batch, rect):
     probs = []
     for i in range(0, len(x), batch):
         xb = x[i:i + batch].astype(np.float32) / 255.0
@@ -54,10 +65,12 @@ def report(y, p):
 
 def main():
     model, folder, out = sys.argv[1:4]
-    rect = sys.argv[4:5] == ["rect"]
+    options = set(sys.argv[4:])
+    if options - {"rect", "shift"}:
+        sys.exit(__doc__)
     sess = ort.InferenceSession(model, providers=["CPUExecutionProvider"])
     x, y = load(folder)
-    p = predict(sess, x, rect=rect)
+    p = predict(sess, x, rect="rect" in options, shifts=SHIFTS if "shift" in options else ((0, 0),))
     known = x[:, 3, 0, 0] != 128
     result = {"classes": CLASSES, "all": report(y, p), "with mask": report(y[known], p[known]),
               "without mask": report(y[~known], p[~known])}

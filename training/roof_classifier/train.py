@@ -114,8 +114,12 @@ def hue_turn(angle):
     return torch.stack([torch.stack([a, b, d], -1), torch.stack([d, a, b], -1), torch.stack([b, d, a], -1)], -2)
 
 
-def augment(xb, gen, symmetry="dihedral", hue=0.0):
+def augment(xb, gen, symmetry="dihedral", hue=0.0, gain=0.08, gamma=0.0):
     """Random turn and flip, colour jitter, grey, blur-free noise, shift, and hidden masks.
+
+    `gain` is the largest change of each colour channel's gain (0.08: +-8 %); with `gamma` > 0,
+    each crop's colours are raised to a random power in [1 / (1 + gamma), 1 + gamma], which
+    darkens or lightens mid-tones as other cameras and light do.
 
     With `hue` > 0, that share of crops has its colours turned by a random hue angle, so roof
     colour (which the renders tie to the class more than real roofs do) cannot decide alone.
@@ -137,7 +141,7 @@ def augment(xb, gen, symmetry="dihedral", hue=0.0):
     # Brightness, contrast, per-channel gain, saturation.
     b = 1 + 0.25 * (torch.rand(n, 1, 1, 1, generator=gen) * 2 - 1)
     c = 1 + 0.3 * (torch.rand(n, 1, 1, 1, generator=gen) * 2 - 1)
-    g = 1 + 0.08 * (torch.rand(n, 3, 1, 1, generator=gen) * 2 - 1)
+    g = 1 + gain * (torch.rand(n, 3, 1, 1, generator=gen) * 2 - 1)
     mean = rgb.mean(dim=(1, 2, 3), keepdim=True)
     rgb = (rgb - mean) * c + mean
     rgb = rgb * b * g
@@ -149,6 +153,10 @@ def augment(xb, gen, symmetry="dihedral", hue=0.0):
         angle = (torch.rand(n, generator=gen) * 2 - 1) * torch.pi
         angle = torch.where(torch.rand(n, generator=gen) < hue, angle, torch.zeros_like(angle))
         rgb = torch.einsum("nij,njhw->nihw", hue_turn(angle), rgb)
+    if gamma > 0:
+        # A power drawn evenly in log space, so darker and lighter are equally likely.
+        power = torch.exp((torch.rand(n, 1, 1, 1, generator=gen) * 2 - 1) * float(np.log1p(gamma)))
+        rgb = rgb.clamp(0, 1) ** power
     rgb = rgb + 0.02 * torch.randn(rgb.shape, generator=gen) * torch.rand(n, 1, 1, 1, generator=gen)
     rgb = rgb.clamp(0, 1)
     # Hide a known mask now and then, so both paths keep training.
@@ -177,7 +185,8 @@ def evaluate(net, x, y, batch=512):
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--train", required=True)
+    ap.add_argument("--train", required=True, action="append",
+                    help="a rendered set; repeat to train on several at once")
     ap.add_argument("--test", required=True)
     ap.add_argument("--out", required=True, help="the .onnx file to write")
     ap.add_argument("--metrics", required=True, help="a JSON file for the model card")
@@ -192,6 +201,8 @@ def main():
     ap.add_argument("--residual", type=int, default=0, help="residual blocks added at 8 x 8")
     ap.add_argument("--hue", type=float, default=0.0, help="share of crops whose hue is turned at random")
     ap.add_argument("--init", help="start from this trained state dict (train.py writes one beside --metrics)")
+    ap.add_argument("--gain", type=float, default=0.08, help="largest change of a colour channel's gain")
+    ap.add_argument("--gamma", type=float, default=0.0, help="random gamma in [1 / (1 + G), 1 + G]")
     ap.add_argument("--lr", type=float, default=3e-3, help="the peak learning rate")
     args = ap.parse_args()
 
@@ -200,7 +211,10 @@ def main():
     torch.set_num_threads(args.threads)
     gen = torch.Generator().manual_seed(args.seed)
 
-    x, y = load(args.train)
+    sets = [load(folder) for folder in args.train]
+    x = np.concatenate([s[0] for s in sets]) if len(sets) > 1 else sets[0][0]
+    y = np.concatenate([s[1] for s in sets]) if len(sets) > 1 else sets[0][1]
+    del sets
     xt, yt = load(args.test)
     print(f"train {len(x)} crops, test {len(xt)} crops", flush=True)
     net = RoofNet(tuple(int(w) for w in args.width.split(",")), spatial=args.spatial, deep=args.deep,
@@ -223,7 +237,7 @@ def main():
         total, correct, loss_sum = 0, 0, 0.0
         for i in range(0, len(order) - args.batch + 1, args.batch):
             idx = order[i:i + args.batch]
-            xb = augment(torch.from_numpy(x[idx]), gen, args.symmetry, args.hue)
+            xb = augment(torch.from_numpy(x[idx]), gen, args.symmetry, args.hue, args.gain, args.gamma)
             yb = torch.from_numpy(y[idx])
             logits = net(xb)
             loss = F.cross_entropy(logits, yb, label_smoothing=0.05)
