@@ -2,13 +2,13 @@
 //! one intra-op thread): a batch of 1 and a batch of 64 crops.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
-use citymesh::classifier::{MODEL_RULE, load_classifier};
+use citymesh::classifier::{MODEL_RULE, Passes, load_classifier};
 use citymesh_core::roof_image::synthetic::{FootprintPool, Palette, render_sample};
 use criterion::{Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
 
 fn classify(c: &mut Criterion) {
-    let classifier = load_classifier(None, None)
+    let classifier = load_classifier(None, None, Passes::default())
         .unwrap_or_else(|e| panic!("{e} (scripts/test installs onnxruntime into .venv)"));
     let pool = FootprintPool::procedural(5);
     let crops: Vec<_> = (0..64)

@@ -6,7 +6,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
 use axum::http::header;
-use citymesh::classifier::load_classifier;
+use citymesh::classifier::{Passes, load_classifier};
 use citymesh::imagery::{Imagery, ImagerySpec};
 use citymesh::jobs::worker::{WorkerConfig, run_round};
 use citymesh::jobs::{RoofJobQueue, Selection, SqliteJobQueue, select_buildings};
@@ -45,7 +45,7 @@ fn jobs(c: &mut Criterion) {
         .enable_all()
         .build()
         .unwrap();
-    let classifier = load_classifier(None, None)
+    let classifier = load_classifier(None, None, Passes::default())
         .unwrap_or_else(|e| panic!("{e} (scripts/test installs onnxruntime into .venv)"));
     let data = std::env::var_os("CITYMESH_DATA_DIR").map_or_else(
         || std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data"),

@@ -7,14 +7,20 @@ mod common;
 
 use citymesh::classifier::input::crop_image;
 use citymesh::classifier::training_set::write_png;
-use citymesh::classifier::{MODEL, MODEL_RULE, RoofClassifier, load_classifier, model_id_of};
+use citymesh::classifier::{
+    MODEL, MODEL_RULE, Passes, RoofClassifier, load_classifier, model_id_of,
+};
 use citymesh_core::osm::read_buildings;
 use citymesh_core::roof_image::RoofClass;
 use citymesh_core::roof_image::synthetic::{FootprintPool, Palette, render_sample};
 use std::sync::Arc;
 
 fn classifier() -> Arc<dyn RoofClassifier> {
-    load_classifier(None, None).unwrap_or_else(|e| {
+    classifier_with(Passes::default())
+}
+
+fn classifier_with(passes: Passes) -> Arc<dyn RoofClassifier> {
+    load_classifier(None, None, passes).unwrap_or_else(|e| {
         panic!("{e}\n(scripts/test installs onnxruntime into .venv; run it once)")
     })
 }
@@ -86,8 +92,32 @@ fn probabilities_sum_to_one_and_batches_answer_as_single_crops() {
                 .crop
         })
         .collect();
-    let c = classifier();
-    let batched = c.classify(&crops).unwrap();
+    let mut answers = Vec::new();
+    for passes in [Passes::Shifted, Passes::Turns] {
+        answers.push(batches_answer_as_single_crops(
+            &classifier_with(passes),
+            &crops,
+        ));
+    }
+    // The shifts change the probabilities (they are run) but rarely the class.
+    let (shifted, turns) = (&answers[0], &answers[1]);
+    assert!(shifted.iter().zip(turns).any(|(a, b)| a != b));
+    let same = shifted
+        .iter()
+        .zip(turns)
+        .filter(|(a, b)| a.class() == b.class())
+        .count();
+    assert!(
+        same >= 63,
+        "{same} of 70 crops keep their class without the shifts"
+    );
+}
+
+fn batches_answer_as_single_crops(
+    c: &Arc<dyn RoofClassifier>,
+    crops: &[citymesh_core::roof_image::Crop],
+) -> Vec<citymesh::classifier::Prediction> {
+    let batched = c.classify(crops).unwrap();
     assert_eq!(batched.len(), 70);
     for (crop, b) in crops.iter().zip(&batched) {
         let sum: f32 = b.probabilities.iter().sum();
@@ -100,6 +130,7 @@ fn probabilities_sum_to_one_and_batches_answer_as_single_crops() {
         assert_eq!(single.class(), b.class());
     }
     assert!(c.classify(&[]).unwrap().is_empty());
+    batched
 }
 
 #[test]

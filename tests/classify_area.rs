@@ -7,7 +7,7 @@
 mod common;
 
 use citymesh::classifier::classify_area::agreement;
-use citymesh::classifier::{RoofClassifier, load_classifier};
+use citymesh::classifier::{Passes, RoofClassifier, load_classifier};
 use citymesh::imagery::{Imagery, ImagerySpec};
 use citymesh::jobs::worker::{WorkerConfig, run_round};
 use citymesh::jobs::{RoofJobQueue, Selection, SqliteJobQueue, select_buildings};
@@ -85,7 +85,7 @@ async fn classify(
 async fn kirchfeld_roofs_classified_from_rendered_imagery_agree_with_their_tags() {
     let base = common::imagery::imagery_server().await;
     let records = kirchfeld();
-    let classifier = load_classifier(None, None).unwrap();
+    let classifier = load_classifier(None, None, Passes::default()).unwrap();
     let imagery = Imagery::open(ImagerySpec::xyz(
         "ortho",
         &format!("{base}/ortho/{{z}}/{{x}}/{{y}}.png"),
@@ -127,7 +127,7 @@ async fn bad_imagery_fails_jobs_with_a_reason_and_never_the_run() {
         .filter(|r| !r.is_part)
         .take(3)
         .collect();
-    let classifier = load_classifier(None, None).unwrap();
+    let classifier = load_classifier(None, None, Passes::default()).unwrap();
     for kind in ["missing", "garbage", "huge", "hang", "small"] {
         let mut spec = ImagerySpec::xyz(kind, &format!("{base}/{kind}/{{z}}/{{x}}/{{y}}.png"));
         spec.timeout_s = 1.0;
@@ -188,7 +188,7 @@ async fn wms_and_mbtiles_sources_give_the_crops_xyz_gives() {
         .filter(|r| !r.is_part)
         .take(24)
         .collect();
-    let classifier = load_classifier(None, None).unwrap();
+    let classifier = load_classifier(None, None, Passes::default()).unwrap();
     let open =
         |url: String| async move { Imagery::open(ImagerySpec::xyz("same", &url)).await.unwrap() };
     let xyz = open(format!("{base}/ortho/{{z}}/{{x}}/{{y}}.png")).await;
@@ -292,7 +292,7 @@ async fn a_geotiff_source_classifies_as_the_tiles_it_was_made_of() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("ortho-3857.tif");
     write_mercator_geotiff(&file, &base, &area).await;
-    let classifier = load_classifier(None, None).unwrap();
+    let classifier = load_classifier(None, None, Passes::default()).unwrap();
     let mut spec = ImagerySpec::xyz("ortho", &format!("{base}/ortho/{{z}}/{{x}}/{{y}}.png"));
     spec.max_zoom = 19;
     let xyz = Imagery::open(spec).await.unwrap();

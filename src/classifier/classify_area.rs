@@ -40,6 +40,7 @@ pub async fn run(args: &ClassifyArgs) -> anyhow::Result<String> {
     let classifier = load_classifier(
         args.classifier.onnxruntime_lib.as_deref(),
         args.classifier.roof_model.as_deref(),
+        args.classifier.roof_passes,
     )?;
     let pool = crate::db::open(&args.cache_db).await?;
     let imagery = args.imagery.open(&pool, None).await?.ok_or_else(|| {

@@ -15,6 +15,7 @@ pub fn run(args: &ClassifyImageArgs) -> anyhow::Result<bool> {
     let classifier = load_classifier(
         args.classifier.onnxruntime_lib.as_deref(),
         args.classifier.roof_model.as_deref(),
+        args.classifier.roof_passes,
     )?;
     let mut all_ok = true;
     for file in &args.files {

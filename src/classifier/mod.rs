@@ -12,6 +12,8 @@ pub mod onnx;
 pub mod runtime;
 pub mod training_set;
 
+pub use onnx::Passes;
+
 use citymesh_core::roof_image::{Crop, CropRule, RoofClass};
 use serde::Serialize;
 use sha2::{Digest, Sha256};
@@ -97,10 +99,11 @@ pub fn model_id_of(model: &[u8]) -> String {
 }
 
 /// Loads the classifier: ONNX Runtime from `library` (or where [`runtime::find_runtime_library`]
-/// looks) and the model from `model` (or the committed one).
+/// looks) and the model from `model` (or the committed one), running each crop in `passes`.
 pub fn load_classifier(
     library: Option<&Path>,
     model: Option<&Path>,
+    passes: onnx::Passes,
 ) -> Result<Arc<dyn RoofClassifier>, ClassifierError> {
     let library = runtime::find_runtime_library(library)?;
     let bytes = match model {
@@ -112,5 +115,6 @@ pub fn load_classifier(
         &library,
         &bytes,
         MODEL_RULE.size,
+        passes,
     )?))
 }

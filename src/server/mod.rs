@@ -150,6 +150,7 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         match crate::classifier::load_classifier(
             c.onnxruntime_lib.as_deref(),
             c.roof_model.as_deref(),
+            c.roof_passes,
         ) {
             Ok(classifier) => {
                 tracing::info!(model_id = classifier.model_id(), "roof classifier loaded");
