@@ -28,6 +28,14 @@ pub enum Command {
     /// Render a seeded set of synthetic roof crops (PNG) with labels, to train or test the roof
     /// classifier (training/roof_classifier/README.md).
     RenderRoofs(RenderRoofsArgs),
+    /// Crop a labelled set of real roof images (a CSV of `file,label[,split,footprint_px_wkt]`)
+    /// by citymesh's crop rule and write them as `render-roofs` writes renders, to train the
+    /// roof classifier on real imagery (training/roof_classifier/README.md).
+    CropLabelled(CropLabelledArgs),
+    /// Fit a new head of the roof classifier on labelled crops of the user's imagery (a CSV of
+    /// `file,label[,split,footprint_px_wkt]`), cross-validate it and write it for
+    /// `classify-image --head`.
+    AdaptRoofs(AdaptRoofsArgs),
     /// Classify the roof of one building per image (PNG or JPEG, any size, centred on the
     /// building): prints one JSON line per file with the class probabilities.
     ClassifyImage(ClassifyImageArgs),
@@ -162,9 +170,9 @@ pub struct ClassifierArgs {
     #[arg(long, env = "CITYMESH_ROOF_MODEL")]
     pub roof_model: Option<PathBuf>,
 
-    /// How many passes each crop is run in: `shifted` (the turns and flips a crop allows, each
-    /// at 5 shifts; the model card's accuracy) or `turns` (no shifts: a fifth of the cost, about
-    /// 0.3 point less accurate).
+    /// How many passes each crop is run in: `turns` (the turns and flips a crop allows; the
+    /// model card's accuracy) or `shifted` (each of those also at 5 shifts: five times the
+    /// cost).
     #[arg(long, env = "CITYMESH_ROOF_PASSES", value_enum, default_value_t)]
     pub roof_passes: crate::classifier::onnx::Passes,
 }
@@ -173,8 +181,22 @@ pub struct ClassifierArgs {
 #[derive(Debug, Clone, Parser)]
 pub struct ClassifyImageArgs {
     /// PNG or JPEG images, each a crop centred on one building.
-    #[arg(required = true)]
+    #[arg(required_unless_present = "labels")]
     pub files: Vec<PathBuf>,
+
+    /// Classify the images of a labels file instead (`file,label` and optional `split` and
+    /// `footprint_px_wkt` columns, images relative to it; the footprint is drawn as the mask):
+    /// one line per image, then a summary line with the accuracy and confusion matrix.
+    #[arg(long, conflicts_with = "footprint_mask")]
+    pub labels: Option<PathBuf>,
+
+    /// With --labels: only the rows of this split (e.g. `val`).
+    #[arg(long, requires = "labels")]
+    pub split: Option<String>,
+
+    /// A head fitted by `citymesh adapt-roofs` to use instead of the shipped one.
+    #[arg(long)]
+    pub head: Option<PathBuf>,
 
     /// The image's alpha channel is the footprint (opaque inside): crop by the footprint's
     /// rotated rectangle exactly as citymesh crops imagery, and give the model the mask.
@@ -183,6 +205,43 @@ pub struct ClassifyImageArgs {
 
     #[command(flatten)]
     pub classifier: ClassifierArgs,
+}
+
+/// Options of `citymesh adapt-roofs`.
+#[derive(Debug, Clone, Parser)]
+pub struct AdaptRoofsArgs {
+    /// The labelled crops: `file,label` and optional `split` and `footprint_px_wkt` columns
+    /// (the Atlanta `labels.csv` layout), images relative to the CSV.
+    #[arg(long)]
+    pub labels: PathBuf,
+
+    /// Only the rows of this split (e.g. `train`).
+    #[arg(long)]
+    pub split: Option<String>,
+
+    /// The head file to write (JSON).
+    #[arg(long, short)]
+    pub out: PathBuf,
+
+    #[command(flatten)]
+    pub classifier: ClassifierArgs,
+}
+
+/// Options of `citymesh crop-labelled`.
+#[derive(Debug, Clone, Parser)]
+pub struct CropLabelledArgs {
+    /// The labels file: `file,label` and optional `split` and `footprint_px_wkt` columns,
+    /// images relative to it.
+    #[arg(long)]
+    pub labels: PathBuf,
+
+    /// Only the rows of this split (e.g. `train`).
+    #[arg(long)]
+    pub split: Option<String>,
+
+    /// Directory to write `images/*.png` and `labels.csv` into.
+    #[arg(long, short)]
+    pub out: PathBuf,
 }
 
 /// Options of `citymesh render-roofs`.

@@ -92,6 +92,31 @@ fn run_batch(command: Command) -> anyhow::Result<()> {
             );
             Ok(())
         }
+        Command::CropLabelled(args) => {
+            let labels = citymesh::classifier::labelled::read_labels(&args.labels)?;
+            let report = citymesh::classifier::training_set::write_labelled_set(
+                &labels,
+                args.split.as_deref(),
+                &args.out,
+            )?;
+            println!(
+                "wrote {} crops (flat {}, gabled {}, hipped {}; {} could not be cropped) to {}",
+                report.written,
+                report.per_class[0],
+                report.per_class[1],
+                report.per_class[2],
+                report.failed,
+                args.out.display()
+            );
+            Ok(())
+        }
+        Command::AdaptRoofs(args) => {
+            if citymesh::classifier::adapt::run_labels(&args)? {
+                Ok(())
+            } else {
+                std::process::exit(1)
+            }
+        }
         Command::ClassifyImage(args) => {
             if citymesh::classifier::classify_image::run(&args)? {
                 Ok(())

@@ -1,28 +1,47 @@
 //! `citymesh classify-image`: one JSON line per image file with the class probabilities.
 
 use super::input::crop_image;
-use super::{MODEL_RULE, load_classifier};
+use super::labelled::read_limited;
+use super::labelled::{evaluate, read_labels};
+use super::{MODEL_RULE, load_classifier_with_head};
 use crate::cli::ClassifyImageArgs;
 use citymesh_core::roof_image::RoofClass;
 use serde_json::json;
 
-/// Largest image file read (bytes).
-const MAX_FILE_BYTES: u64 = 64 << 20;
-
 /// Classifies every file and prints a line for each; `Ok(false)` when a file failed (its line
 /// says why). Loading the classifier failing is an error.
 pub fn run(args: &ClassifyImageArgs) -> anyhow::Result<bool> {
-    let classifier = load_classifier(
+    let classifier = load_classifier_with_head(
         args.classifier.onnxruntime_lib.as_deref(),
         args.classifier.roof_model.as_deref(),
         args.classifier.roof_passes,
+        args.head.as_deref(),
     )?;
+    if let Some(labels) = &args.labels {
+        let rows: Vec<_> = read_labels(labels)?
+            .into_iter()
+            .filter(|r| args.split.is_none() || r.split == args.split)
+            .collect();
+        let report = evaluate(classifier.as_ref(), &rows, MODEL_RULE)?;
+        for (name, truth, p) in &report.predictions {
+            println!(
+                "{}",
+                json!({"file": name, "label": truth.name(), "class": p.class().name(),
+                       "probabilities": p.probabilities})
+            );
+        }
+        println!(
+            "{}",
+            json!({"summary": report, "model_id": classifier.model_id(), "split": args.split})
+        );
+        return Ok(report.failed.is_empty());
+    }
     let mut all_ok = true;
     for file in &args.files {
         let name = file.display().to_string();
-        let crop = read_limited(file).and_then(|bytes| {
-            crop_image(&bytes, args.footprint_mask, MODEL_RULE).map_err(|e| e.to_string())
-        });
+        let crop = read_limited(file)
+            .and_then(|bytes| crop_image(&bytes, args.footprint_mask, MODEL_RULE))
+            .map_err(|e| e.to_string());
         let line = match crop.and_then(|c| {
             classifier
                 .classify(std::slice::from_ref(&c))
@@ -54,16 +73,4 @@ pub fn run(args: &ClassifyImageArgs) -> anyhow::Result<bool> {
         println!("{line}");
     }
     Ok(all_ok)
-}
-
-fn read_limited(path: &std::path::Path) -> Result<Vec<u8>, String> {
-    use std::io::Read;
-    let mut bytes = Vec::new();
-    std::fs::File::open(path)
-        .and_then(|f| f.take(MAX_FILE_BYTES + 1).read_to_end(&mut bytes))
-        .map_err(|e| e.to_string())?;
-    if bytes.len() as u64 > MAX_FILE_BYTES {
-        return Err(format!("larger than {} MiB", MAX_FILE_BYTES >> 20));
-    }
-    Ok(bytes)
 }

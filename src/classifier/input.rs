@@ -15,9 +15,14 @@ use citymesh_core::roof_image::{Crop, CropFrame, CropRule, Image};
 pub const MAX_SIDE: u32 = 8192;
 const MAX_ALLOC: u64 = 512 << 20;
 
-/// Decodes PNG or JPEG bytes and crops them by `rule`; `use_mask` takes the footprint from the
-/// alpha channel.
-pub fn crop_image(bytes: &[u8], use_mask: bool, rule: CropRule) -> Result<Crop, ClassifierError> {
+/// A decoded image: its colours and, when it has an alpha channel, the alpha values.
+struct Decoded {
+    image: Image,
+    alpha: Option<Vec<u8>>,
+}
+
+/// Decodes PNG or JPEG bytes within the side and allocation limits.
+fn decode(bytes: &[u8]) -> Result<Decoded, ClassifierError> {
     let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| ClassifierError::Input(e.to_string()))?;
@@ -40,15 +45,53 @@ pub fn crop_image(bytes: &[u8], use_mask: bool, rule: CropRule) -> Result<Crop, 
     let rgb: Vec<[u8; 3]> = rgba.pixels().map(|p| [p[0], p[1], p[2]]).collect();
     let image = Image::from_srgb8(w, h, &rgb)
         .ok_or_else(|| ClassifierError::Input("pixel count mismatch".into()))?;
-    // World coordinates are pixels, y up, so the crop's frame reads them as metres.
-    let to_pixel = |p: [f64; 2]| [p[0], -p[1]];
+    let alpha = has_alpha.then(|| rgba.pixels().map(|p| p[3]).collect());
+    Ok(Decoded { image, alpha })
+}
+
+/// World coordinates of a pixel position: pixels, y up, so a crop's frame reads them as metres.
+fn to_world(p: [f64; 2]) -> [f64; 2] {
+    [p[0], -p[1]]
+}
+
+/// Decodes PNG or JPEG bytes and crops them by `rule` around a footprint given in the image's
+/// pixel coordinates (x right, y down; outer ring first, then holes), exactly as citymesh crops
+/// imagery around an OSM footprint: the footprint's rotated rectangle frames the crop and the
+/// footprint is the mask.
+pub fn crop_footprint_image(
+    bytes: &[u8],
+    rings_px: &[Vec<[f64; 2]>],
+    rule: CropRule,
+) -> Result<Crop, ClassifierError> {
+    let decoded = decode(bytes)?;
+    let rings: Vec<Vec<[f64; 2]>> = rings_px
+        .iter()
+        .map(|r| r.iter().copied().map(to_world).collect())
+        .collect();
+    let outer = rings
+        .first()
+        .ok_or_else(|| ClassifierError::Input("the footprint has no ring".into()))?;
+    let frame = CropFrame::of_footprint(outer, rule)
+        .ok_or_else(|| ClassifierError::Input("the footprint has no extent".into()))?;
+    Ok(Crop {
+        size: rule.size,
+        rgb: frame.sample(&decoded.image, to_world, 1.0),
+        mask: Some(frame.mask(&rings)),
+    })
+}
+
+/// Decodes PNG or JPEG bytes and crops them by `rule`; `use_mask` takes the footprint from the
+/// alpha channel.
+pub fn crop_image(bytes: &[u8], use_mask: bool, rule: CropRule) -> Result<Crop, ClassifierError> {
+    let Decoded { image, alpha } = decode(bytes)?;
+    let (w, h) = (image.width, image.height);
+    let to_pixel = to_world;
     if use_mask {
-        if !has_alpha {
+        let Some(alpha) = alpha else {
             return Err(ClassifierError::Input(
                 "--footprint-mask needs an alpha channel (opaque inside the footprint); this image has none".into(),
             ));
-        }
-        let alpha: Vec<u8> = rgba.pixels().map(|p| p[3]).collect();
+        };
         let mut corners = Vec::new();
         for y in 0..h {
             for x in 0..w {

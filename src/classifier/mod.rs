@@ -5,9 +5,12 @@
 //! and the runtime library that [`runtime`] finds; [`input`] turns any image into the model's
 //! crop by the crop rule; [`training_set`] writes the synthetic training and test sets.
 
+pub mod adapt;
 pub mod classify_area;
 pub mod classify_image;
+pub mod head;
 pub mod input;
+pub mod labelled;
 pub mod onnx;
 pub mod runtime;
 pub mod training_set;
@@ -105,6 +108,33 @@ pub fn load_classifier(
     model: Option<&Path>,
     passes: onnx::Passes,
 ) -> Result<Arc<dyn RoofClassifier>, ClassifierError> {
+    Ok(load_onnx(library, model, passes)?)
+}
+
+/// [`load_classifier`], with the fitted head in `head` (a `citymesh adapt-roofs` file) in place
+/// of the shipped one when given.
+pub fn load_classifier_with_head(
+    library: Option<&Path>,
+    model: Option<&Path>,
+    passes: onnx::Passes,
+    head: Option<&Path>,
+) -> Result<Arc<dyn RoofClassifier>, ClassifierError> {
+    let base = load_onnx(library, model, passes)?;
+    match head {
+        Some(path) => Ok(Arc::new(head::HeadedClassifier::new(
+            base,
+            head::RoofHead::read(path)?,
+        )?)),
+        None => Ok(base),
+    }
+}
+
+/// The ONNX classifier itself (for embeddings).
+pub fn load_onnx(
+    library: Option<&Path>,
+    model: Option<&Path>,
+    passes: onnx::Passes,
+) -> Result<Arc<onnx::OnnxClassifier>, ClassifierError> {
     let library = runtime::find_runtime_library(library)?;
     let bytes = match model {
         Some(path) => std::fs::read(path)

@@ -9,7 +9,7 @@ use std::path::Path;
 use std::sync::{Mutex, OnceLock};
 
 /// Crops per inference call at most (each run in up to 8 turns and flips at 5 shifts: 640 rows
-/// of 64 x 64 x 4 floats, 42 MB, at most).
+/// of 96 x 96 x 4 floats, 94 MB, at most).
 pub const MAX_BATCH: usize = 16;
 
 /// The shifts (rows, columns; wrapping around as numpy's `roll`) each turn is also run at: none,
@@ -21,11 +21,11 @@ const SHIFTS: [(isize, isize); 5] = [(0, 0), (2, 0), (-2, 0), (0, 2), (0, -2)];
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum Passes {
     /// The turns and flips, each at 5 shifts: 20 passes for a crop with a footprint, 40
-    /// without (the model card's figures).
-    #[default]
+    /// without: five times the cost of `turns`.
     Shifted,
-    /// The turns and flips only: 4 or 8 passes, a fifth of the cost, about 0.3 point less
-    /// accurate on the held-out renders.
+    /// The turns and flips only: 4 passes for a crop with a footprint, 8 without (the model
+    /// card's figures).
+    #[default]
     Turns,
 }
 
@@ -170,6 +170,31 @@ impl RoofClassifier for OnnxClassifier {
     }
 
     fn classify(&self, crops: &[Crop]) -> Result<Vec<Prediction>, ClassifierError> {
+        Ok(self
+            .run(crops, false)?
+            .into_iter()
+            .map(|e| e.prediction)
+            .collect())
+    }
+}
+
+/// The model's answer for one crop with what its head saw: the embedding of each pass.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Embedded {
+    /// The shipped head's probabilities, averaged over the passes.
+    pub prediction: Prediction,
+    /// One embedding per pass (turn, flip and shift), in run order.
+    pub embeddings: Vec<Vec<f32>>,
+}
+
+impl OnnxClassifier {
+    /// Like [`RoofClassifier::classify`], with the embedding of every pass (the model's
+    /// `embedding` output, which a model without one cannot give).
+    pub fn classify_embedded(&self, crops: &[Crop]) -> Result<Vec<Embedded>, ClassifierError> {
+        self.run(crops, true)
+    }
+
+    fn run(&self, crops: &[Crop], embed: bool) -> Result<Vec<Embedded>, ClassifierError> {
         let mut out = Vec::with_capacity(crops.len());
         for batch in crops.chunks(MAX_BATCH) {
             let n = self.size * self.size;
@@ -207,23 +232,53 @@ impl RoofClassifier for OnnxClassifier {
                     "unexpected output shape {shape:?}"
                 )));
             }
-            let mut rest = probs;
+            let embeddings: Option<(usize, &[f32])> = if embed {
+                let value = outputs.get("embedding").ok_or_else(|| {
+                    ClassifierError::Model(
+                        "the model has no `embedding` output, so no head can be fitted on it"
+                            .into(),
+                    )
+                })?;
+                let (shape, values) = value
+                    .try_extract_tensor::<f32>()
+                    .map_err(|e| ClassifierError::Model(e.to_string()))?;
+                let dims = shape.get(1).copied().unwrap_or(0).max(0) as usize;
+                if shape.len() != 2 || dims == 0 || values.len() != dims * rows {
+                    return Err(ClassifierError::Model(format!(
+                        "unexpected embedding shape {shape:?}"
+                    )));
+                }
+                Some((dims, values))
+            } else {
+                None
+            };
+            let mut offset = 0;
             for crop in batch {
                 let count = self.runs_of(crop);
-                let Some((runs, tail)) = rest.split_at_checked(3 * count) else {
+                let Some(runs) = probs.get(3 * offset..3 * (offset + count)) else {
                     return Err(ClassifierError::Model(format!(
                         "{} probabilities for {rows} runs",
                         probs.len() / 3
                     )));
                 };
-                rest = tail;
                 let mut mean = [0.0f32; 3];
                 for p in runs.chunks_exact(3) {
                     for k in 0..3 {
                         mean[k] += p[k] / count as f32;
                     }
                 }
-                out.push(Prediction::new(mean));
+                let embeddings = match embeddings {
+                    Some((dims, values)) => values[dims * offset..dims * (offset + count)]
+                        .chunks_exact(dims)
+                        .map(<[f32]>::to_vec)
+                        .collect(),
+                    None => Vec::new(),
+                };
+                offset += count;
+                out.push(Embedded {
+                    prediction: Prediction::new(mean),
+                    embeddings,
+                });
             }
         }
         Ok(out)

@@ -3,6 +3,7 @@
 //! has one, RGB when not) and a `labels.csv`.
 
 use super::ClassifierError;
+use super::labelled::LabelledImage;
 use crate::source::read_osm_file;
 use citymesh_core::osm::read_buildings;
 use citymesh_core::roof_image::synthetic::{FootprintPool, Palette, render_sample};
@@ -114,6 +115,56 @@ pub fn render_training_set(spec: &TrainingSetSpec) -> Result<TrainingSetReport, 
         }
         report.written += 1;
         writeln!(csv, "{row}").map_err(|e| io_error(&labels, e))?;
+    }
+    csv.flush().map_err(|e| io_error(&labels, e))?;
+    Ok(report)
+}
+
+/// Crops labelled real images (of `split` only, when given) by the model's crop rule and writes
+/// them as [`render_training_set`] writes renders, with the source file and split as extra
+/// columns. A row whose image cannot be cropped is counted as failed and named on stderr.
+pub fn write_labelled_set(
+    rows: &[LabelledImage],
+    split: Option<&str>,
+    out: &Path,
+) -> Result<TrainingSetReport, ClassifierError> {
+    let images = out.join("images");
+    std::fs::create_dir_all(&images).map_err(|e| io_error(&images, e))?;
+    let labels = out.join("labels.csv");
+    let mut csv =
+        std::io::BufWriter::new(std::fs::File::create(&labels).map_err(|e| io_error(&labels, e))?);
+    writeln!(
+        csv,
+        "file,class,shape,mask,imagery_m_per_px,footprints,source,split"
+    )
+    .map_err(|e| io_error(&labels, e))?;
+    let mut report = TrainingSetReport::default();
+    let chosen = rows
+        .iter()
+        .filter(|r| split.is_none() || r.split.as_deref() == split);
+    for (i, row) in chosen.enumerate() {
+        let crop = match row.crop(CropRule::MODEL) {
+            Ok(crop) => crop,
+            Err(e) => {
+                eprintln!("skipped: {e}");
+                report.failed += 1;
+                continue;
+            }
+        };
+        let file = format!("{i:06}.png");
+        write_png(&images.join(&file), &crop)?;
+        writeln!(
+            csv,
+            "images/{file},{},{},{},,labelled,{},{}",
+            row.label.name(),
+            row.label.name(),
+            u8::from(crop.mask.is_some()),
+            row.name.replace(',', "_"),
+            row.split.as_deref().unwrap_or("").replace(',', "_"),
+        )
+        .map_err(|e| io_error(&labels, e))?;
+        report.per_class[row.label.index()] += 1;
+        report.written += 1;
     }
     csv.flush().map_err(|e| io_error(&labels, e))?;
     Ok(report)

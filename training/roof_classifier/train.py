@@ -25,17 +25,19 @@ UNKNOWN = 128 / 255
 
 
 def load(folder):
-    """Images (uint8, N x 4 x 64 x 64; mask 128 where unknown) and labels of a rendered set."""
+    """Images (uint8, N x 4 x S x S; mask 128 where unknown) and labels of a rendered set."""
     cache = os.path.join(folder, "crops.npz")
     if os.path.exists(cache) and os.path.getmtime(cache) >= os.path.getmtime(os.path.join(folder, "labels.csv")):
         z = np.load(cache)
         return z["x"], z["y"]
     rows = list(csv.DictReader(open(os.path.join(folder, "labels.csv"))))
-    x = np.empty((len(rows), 4, SIZE, SIZE), dtype=np.uint8)
+    x = None
     y = np.empty(len(rows), dtype=np.int64)
     for i, r in enumerate(rows):
         im = Image.open(os.path.join(folder, r["file"]))
         a = np.asarray(im)
+        if x is None:
+            x = np.empty((len(rows), 4, a.shape[0], a.shape[1]), dtype=np.uint8)
         x[i, :3] = a[:, :, :3].transpose(2, 0, 1)
         x[i, 3] = a[:, :, 3] if a.shape[2] == 4 else 128
         y[i] = CLASSES.index(r["class"])

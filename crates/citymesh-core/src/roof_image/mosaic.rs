@@ -117,7 +117,7 @@ mod tests {
 
     #[test]
     fn a_house_is_cropped_from_the_right_tiles_at_the_right_zoom() {
-        // A 16 x 10 m house at Karlsruhe: 16 m over 0.7 * 64 px = 0.357 m/px: zoom 19 (0.196) is
+        // A 16 x 10 m house at Karlsruhe: 16 m over 0.8 * 96 px = 0.208 m/px: zoom 19 (0.196) is
         // the first at least that fine; z18 (0.39) is coarser.
         let frame = LocalFrame::new(8.4, 49.0, 0.0);
         let ring: Vec<[f64; 2]> = [[0.0, 0.0], [16.0, 0.0], [16.0, 10.0], [0.0, 10.0]]
@@ -145,9 +145,9 @@ mod tests {
         let refs: Vec<(TileCoord, &Image)> = tiles.iter().map(|(t, i)| (*t, i)).collect();
         let crop = fc.crop(&range, 256, &refs);
         let mask = crop.mask.expect("mask");
-        // 16 m at 0.357 m/px: 45 columns of 64 inside, 10 m: 28 rows.
-        let cols = (0..64).filter(|&x| mask[32 * 64 + x] == 255).count();
-        assert!((44..=46).contains(&cols), "{cols}");
+        // 16 m at 0.208 m/px: 77 columns of 96 inside.
+        let cols = (0..96).filter(|&x| mask[48 * 96 + x] == 255).count();
+        assert!((76..=78).contains(&cols), "{cols}");
         // No pixel is black: every tile the crop touches was given.
         assert!(crop.rgb.iter().all(|p| p[0] > 0));
     }

@@ -1159,7 +1159,7 @@ mod tests {
         let a = render_sample(&pool, 12, Palette::Training, rule).expect("a sample");
         let b = render_sample(&pool, 12, Palette::Training, rule).expect("a sample");
         assert_eq!(a, b);
-        assert_eq!(a.crop.rgb.len(), 64 * 64);
+        assert_eq!(a.crop.rgb.len(), 96 * 96);
         let classes: Vec<RoofClass> = (30..36)
             .filter_map(|s| render_sample(&pool, s, Palette::Holdout, rule))
             .map(|s| s.class)
@@ -1172,7 +1172,7 @@ mod tests {
 
     #[test]
     fn the_mask_covers_the_fill_share_of_the_crop_along_the_long_side() {
-        // A lone 20 x 10 m building: with its mask known, the mask spans 70 % of the width.
+        // A lone 20 x 10 m building: with its mask known, the mask spans 80 % of the width.
         let pool = FootprintPool::new(vec![vec![
             [-10.0, -5.0],
             [10.0, -5.0],
@@ -1185,11 +1185,11 @@ mod tests {
             .find(|s| s.crop.mask.is_some())
             .expect("a sample with a mask");
         let mask = sample.crop.mask.expect("mask");
-        let row: usize = (0..64).filter(|&x| mask[32 * 64 + x] == 255).count();
-        let col: usize = (0..64).filter(|&y| mask[y * 64 + 32] == 255).count();
-        // 20 m over 0.7 * 64 px: 44.8 px; 10 m: 22.4 px.
-        assert!((44..=46).contains(&row), "{row}");
-        assert!((22..=23).contains(&col), "{col}");
+        let row: usize = (0..96).filter(|&x| mask[48 * 96 + x] == 255).count();
+        let col: usize = (0..96).filter(|&y| mask[y * 96 + 48] == 255).count();
+        // 20 m over 0.8 * 96 px: 76.8 px; 10 m: 38.4 px.
+        assert!((76..=78).contains(&row), "{row}");
+        assert!((38..=39).contains(&col), "{col}");
     }
 }
 
