@@ -210,18 +210,45 @@ pub struct ClassifyImageArgs {
 /// Options of `citymesh adapt-roofs`.
 #[derive(Debug, Clone, Parser)]
 pub struct AdaptRoofsArgs {
-    /// The labelled crops: `file,label` and optional `split` and `footprint_px_wkt` columns
-    /// (the Atlanta `labels.csv` layout), images relative to the CSV.
-    #[arg(long)]
-    pub labels: PathBuf,
+    /// Labelled crops: `file,label` and optional `split` and `footprint_px_wkt` columns (the
+    /// Atlanta `labels.csv` layout), images relative to the CSV.
+    #[arg(long, required_unless_present = "osm", conflicts_with = "osm")]
+    pub labels: Option<PathBuf>,
 
-    /// Only the rows of this split (e.g. `train`).
-    #[arg(long)]
+    /// With --labels: only the rows of this split (e.g. `train`).
+    #[arg(long, requires = "labels")]
     pub split: Option<String>,
+
+    /// Or OSM files (PBF, OSM XML or Overpass JSON, optionally .gz): their buildings whose
+    /// `roof:shape` is flat, gabled, hipped or pyramidal are the examples, cropped from
+    /// --imagery-url as the server crops any building. The head is also stored in --cache-db for
+    /// that imagery, where `serve` uses it.
+    #[arg(long)]
+    pub osm: Vec<PathBuf>,
+
+    /// With --osm: only buildings whose footprint's centre lies in this box:
+    /// west,south,east,north.
+    #[arg(long, requires = "osm")]
+    pub bbox: Option<String>,
+
+    #[command(flatten)]
+    pub imagery: ImageryArgs,
+
+    /// With --osm: the SQLite file the head is stored in (the one `serve --cache-db` uses).
+    #[arg(
+        long,
+        env = "CITYMESH_CACHE_DB",
+        default_value = "data/citymesh.sqlite"
+    )]
+    pub cache_db: String,
 
     /// The head file to write (JSON).
     #[arg(long, short)]
     pub out: PathBuf,
+
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
 
     #[command(flatten)]
     pub classifier: ClassifierArgs,

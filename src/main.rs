@@ -13,12 +13,22 @@ fn main() -> anyhow::Result<()> {
         // Serving and the commands that talk to the database or the network need the runtime;
         // batch commands run on this thread and start none (it shows in whole-process timings).
         command @ (Command::Serve(_) | Command::Import(_) | Command::Classify(_)) => {
+            runtime(command)
+        }
+        Command::AdaptRoofs(args) if args.labels.is_none() => runtime(Command::AdaptRoofs(args)),
+        command => run_batch(command),
+    }
+}
+
+/// Runs `command` on a multi-threaded runtime.
+fn runtime(command: Command) -> anyhow::Result<()> {
+    {
+        {
             tokio::runtime::Builder::new_multi_thread()
                 .enable_all()
                 .build()?
                 .block_on(run(command))
         }
-        command => run_batch(command),
     }
 }
 
@@ -44,6 +54,13 @@ async fn run(command: Command) -> anyhow::Result<()> {
             let summary = citymesh::classifier::classify_area::run(&args).await?;
             println!("{summary}");
             Ok(())
+        }
+        Command::AdaptRoofs(args) if args.labels.is_none() => {
+            if citymesh::classifier::adapt::run_osm(&args).await? {
+                Ok(())
+            } else {
+                std::process::exit(1)
+            }
         }
         command => run_batch(command),
     }
@@ -110,7 +127,7 @@ fn run_batch(command: Command) -> anyhow::Result<()> {
             );
             Ok(())
         }
-        Command::AdaptRoofs(args) => {
+        Command::AdaptRoofs(args) if args.labels.is_some() => {
             if citymesh::classifier::adapt::run_labels(&args)? {
                 Ok(())
             } else {
@@ -124,7 +141,7 @@ fn run_batch(command: Command) -> anyhow::Result<()> {
                 std::process::exit(1)
             }
         }
-        Command::Serve(_) | Command::Import(_) | Command::Classify(_) => {
+        Command::Serve(_) | Command::Import(_) | Command::Classify(_) | Command::AdaptRoofs(_) => {
             anyhow::bail!("this command needs the async runtime (main starts it)")
         }
     }

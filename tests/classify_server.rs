@@ -307,13 +307,14 @@ async fn stripped_kirchfeld_classified_through_the_api_agrees_with_its_tags_and_
     let home_before = common::get(&app, &tile_uri(home, "classified")).await;
     let entry = state
         .roofs
+        .active()
         .index
         .with(|m| m.get(&moved_id).cloned())
         .unwrap();
     let old = entry.prediction.probabilities;
     // The same confidence, another class.
     let turned = [old[1], old[2], old[0]];
-    state.roofs.index.insert(
+    state.roofs.active().index.insert(
         moved_id.clone(),
         entry.footprint_hash.clone(),
         citymesh::classifier::Prediction::new(turned),

@@ -1,17 +1,29 @@
-//! `citymesh adapt-roofs`: fits a head of the roof classifier on labelled crops of the user's
-//! imagery ([`super::head`]) and writes it, with its cross-validated report.
+//! `citymesh adapt-roofs`: fits a head of the roof classifier ([`super::head`]) on labelled crops
+//! of the user's imagery, or on the buildings of OSM files whose roofs are tagged, cropped from an
+//! imagery service as the server crops them; writes it, with its cross-validated report.
 
 use super::head::{AdaptError, fit_head};
 use super::labelled::read_labels;
-use super::{MODEL_RULE, load_onnx};
+use super::{MODEL_RULE, RoofClassifier as _, load_onnx};
 use crate::cli::AdaptRoofsArgs;
+use crate::jobs::adapt::{
+    AdaptationStore, Progress, fit_on_imagery, new_adaptation_id, tagged_examples,
+};
+use crate::jobs::ring_bounds;
+use crate::source::read_osm_file;
+use citymesh_core::geo::GeoBbox;
+use citymesh_core::osm::read_buildings;
 use citymesh_core::roof_image::RoofClass;
 use serde_json::json;
 
 /// Fits and writes the head; prints the report as JSON. `Ok(false)` when there were too few
 /// examples (the message says so and nothing is written).
 pub fn run_labels(args: &AdaptRoofsArgs) -> anyhow::Result<bool> {
-    let rows = read_labels(&args.labels)?;
+    let labels = args
+        .labels
+        .as_deref()
+        .ok_or_else(|| anyhow::anyhow!("--labels is required"))?;
+    let rows = read_labels(labels)?;
     let rows: Vec<_> = rows
         .into_iter()
         .filter(|r| args.split.is_none() || r.split == args.split)
@@ -41,6 +53,81 @@ pub fn run_labels(args: &AdaptRoofsArgs) -> anyhow::Result<bool> {
         }
         Err(e) => return Err(e.into()),
     };
+    print_report(args, &head, failed, started)?;
+    Ok(true)
+}
+
+/// Fits a head on the tagged buildings of `--osm` files, cropped from `--imagery-url`; writes it
+/// to `--out` and stores it in `--cache-db` for that imagery. `Ok(false)` when too few examples
+/// could be cropped.
+pub async fn run_osm(args: &AdaptRoofsArgs) -> anyhow::Result<bool> {
+    let bbox: Option<GeoBbox> = args
+        .bbox
+        .as_deref()
+        .map(str::parse)
+        .transpose()
+        .map_err(|e| anyhow::anyhow!("--bbox: {e}"))?;
+    let mut records = Vec::new();
+    for path in &args.osm {
+        let bytes = read_osm_file(path)?;
+        let osm = read_buildings(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        records.extend(osm.buildings);
+    }
+    let examples = tagged_examples(&records, |ring| {
+        bbox.as_ref().is_none_or(|b| {
+            ring_bounds(ring).is_some_and(|[w, s, e, n]| b.contains((w + e) / 2.0, (s + n) / 2.0))
+        })
+    });
+    let classifier = load_onnx(
+        args.classifier.onnxruntime_lib.as_deref(),
+        args.classifier.roof_model.as_deref(),
+        args.classifier.roof_passes,
+    )?;
+    let pool = crate::db::open(&args.cache_db).await?;
+    let imagery = args.imagery.open(&pool, None).await?.ok_or_else(|| {
+        anyhow::anyhow!("--imagery-url is required with --osm: the imagery to adapt to")
+    })?;
+    let mut counts = [0usize; 3];
+    examples.iter().for_each(|e| counts[e.class.index()] += 1);
+    let store = AdaptationStore::new(pool);
+    let id = new_adaptation_id()?;
+    let area = bbox.map_or_else(|| "files".to_owned(), |b| b.to_string());
+    store
+        .create(
+            &id,
+            &area,
+            &imagery.spec().id,
+            classifier.model_id(),
+            counts,
+        )
+        .await?;
+    let bar = if args.quiet {
+        indicatif::ProgressBar::hidden()
+    } else {
+        indicatif::ProgressBar::new(examples.len() as u64)
+    };
+    let started = std::time::Instant::now();
+    let outcome = fit_on_imagery(&classifier, &imagery, &examples, &Progress::Bar(&bar)).await;
+    bar.finish_and_clear();
+    store.record(&id, &outcome).await?;
+    match outcome {
+        Ok(head) => {
+            print_report(args, &head, 0, started)?;
+            Ok(true)
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            Ok(false)
+        }
+    }
+}
+
+fn print_report(
+    args: &AdaptRoofsArgs,
+    head: &super::head::RoofHead,
+    failed: usize,
+    started: std::time::Instant,
+) -> anyhow::Result<()> {
     head.write(&args.out)?;
     let r = &head.report;
     println!(
@@ -60,5 +147,5 @@ pub fn run_labels(args: &AdaptRoofsArgs) -> anyhow::Result<bool> {
             "seconds": started.elapsed().as_secs_f64(),
         })
     );
-    Ok(true)
+    Ok(())
 }

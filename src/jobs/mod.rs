@@ -7,6 +7,7 @@
 //! [`worker`] runs jobs: imagery, crop, inference, store. [`RoofJobs`] is the server's side:
 //! the queue, the workers, and the [`PredictionIndex`] that `roofs=classified` tiles read.
 
+pub mod adapt;
 mod index;
 mod queue;
 mod select;
@@ -20,5 +21,5 @@ pub use queue::{
     footprint_hash, ring_bounds,
 };
 pub use select::{Selection, select_buildings};
-pub use service::RoofJobs;
+pub use service::{ActiveHead, ActiveModel, RoofJobs};
 pub use sqlite::SqliteJobQueue;

@@ -1,32 +1,65 @@
 //! The server's roof jobs: the queue on the cache database, the predictions tiles use, and the
 //! workers that run jobs when a classifier and an imagery service are configured.
 
+use super::adapt::AdaptationStore;
 use super::index::PredictionIndex;
 use super::queue::{JobError, RoofJobQueue};
 use super::sqlite::SqliteJobQueue;
-use super::worker::{RoundReport, WorkerConfig, run_worker};
+use super::worker::{CurrentModel, RoundReport, SharedOnDone, WorkerConfig, run_worker};
 use crate::classifier::RoofClassifier;
+use crate::classifier::head::{HeadedClassifier, RoofHead};
+use crate::classifier::onnx::OnnxClassifier;
 use crate::imagery::Imagery;
 use crate::metrics::{Metrics, StateLabels};
-use std::sync::Arc;
+use std::sync::{Arc, RwLock};
 
 pub struct RoofJobs {
     pub queue: SqliteJobQueue,
-    /// Predictions of the served imagery and model, by building.
-    pub index: Arc<PredictionIndex>,
     /// The imagery predictions are made from (and looked up by).
     pub imagery_id: String,
     pub imagery_attribution: String,
-    /// The model predictions are made by: the loaded classifier's, else the built-in model's
-    /// (stored predictions serve tiles even where ONNX Runtime is not installed).
-    pub model_id: String,
     /// The imagery service, when configured.
     pub imagery: Option<Arc<Imagery>>,
+    /// The shipped model loaded with ONNX Runtime, when loaded: heads are fitted on its
+    /// embedding.
+    pub base: Option<Arc<OnnxClassifier>>,
+    /// The model now in use, with its predictions; replaced when a head is adapted.
+    active: RwLock<Arc<ActiveModel>>,
+    /// Adaptations of the classifier to this imagery.
+    pub adaptations: AdaptationStore,
+    metrics: Arc<Metrics>,
+}
+
+/// The model predictions are made by now, and the predictions it made.
+pub struct ActiveModel {
+    /// The loaded classifier's id (`MODEL+head-HEAD` with an adapted head), else the built-in
+    /// model's (stored predictions serve tiles even where ONNX Runtime is not installed).
+    pub model_id: String,
     /// The classifier, when loaded.
     pub classifier: Option<Arc<dyn RoofClassifier>>,
+    /// Predictions of the served imagery and this model, by building.
+    pub index: Arc<PredictionIndex>,
     /// Least top probability that gives a roof its shape.
     pub threshold: f32,
-    metrics: Arc<Metrics>,
+    /// The adapted head in use, if any.
+    pub head: Option<ActiveHead>,
+}
+
+/// An adapted head in use.
+#[derive(Debug, Clone, serde::Serialize, utoipa::ToSchema)]
+pub struct ActiveHead {
+    pub head_id: String,
+    /// The adaptation that fitted it.
+    pub adaptation: String,
+    /// Its cross-validated accuracy on the tagged buildings it was fitted on.
+    pub accuracy: f64,
+}
+
+impl ActiveModel {
+    /// The model id as a number for cache keys (xxh3 of the whole id, so a head changes it).
+    pub fn model_key(&self) -> u64 {
+        xxhash_rust::xxh3::xxh3_64(self.model_id.as_bytes())
+    }
 }
 
 impl RoofJobs {
@@ -38,34 +71,93 @@ impl RoofJobs {
         imagery_attribution: String,
         model_id: String,
         imagery: Option<Arc<Imagery>>,
-        classifier: Option<Arc<dyn RoofClassifier>>,
+        base: Option<Arc<OnnxClassifier>>,
         threshold: f32,
         metrics: Arc<Metrics>,
     ) -> Result<Self, JobError> {
         let index = Arc::new(PredictionIndex::load(&queue, &imagery_id, &model_id).await?);
+        let classifier = base.clone().map(|b| b as Arc<dyn RoofClassifier>);
+        let adaptations = AdaptationStore::new(queue.pool().clone());
+        let interrupted = adaptations.interrupt_running().await?;
+        if interrupted > 0 {
+            tracing::warn!(interrupted, "roof adaptations interrupted by a restart");
+        }
+        let base_model_id = model_id.clone();
         let jobs = Self {
+            adaptations,
             queue,
-            index,
             imagery_id,
             imagery_attribution,
-            model_id,
             imagery,
-            classifier,
-            threshold,
+            base,
+            active: RwLock::new(Arc::new(ActiveModel {
+                model_id,
+                classifier,
+                index,
+                threshold,
+                head: None,
+            })),
             metrics,
         };
+        // The newest head adapted to this imagery for this model is in use, as before a restart.
+        if jobs.base.is_some()
+            && let Some((adaptation, head)) = jobs
+                .adaptations
+                .newest_head(&jobs.imagery_id, &base_model_id)
+                .await?
+        {
+            jobs.use_head(head, &adaptation).await?;
+        }
         jobs.refresh_state_metrics().await;
         Ok(jobs)
     }
 
-    /// The model id as a number for cache keys (its first 16 hex digits).
-    pub fn model_key(&self) -> u64 {
-        u64::from_str_radix(self.model_id.get(..16).unwrap_or("0"), 16).unwrap_or(0)
+    /// The model in use now.
+    pub fn active(&self) -> Arc<ActiveModel> {
+        self.active
+            .read()
+            .map_or_else(|poisoned| poisoned.into_inner().clone(), |a| a.clone())
+    }
+
+    /// Puts `head` (fitted for the loaded model) in use for this imagery: new predictions are made
+    /// with it and recorded under its id, and tiles with `roofs=classified` use them; the
+    /// predictions it made before (after a restart) are loaded.
+    pub async fn use_head(&self, head: RoofHead, adaptation: &str) -> Result<(), JobError> {
+        let Some(base) = self.base.clone() else {
+            return Err(JobError::Corrupt("no classifier is loaded".into()));
+        };
+        let threshold = head
+            .report
+            .threshold
+            .probability
+            .max(self.active().threshold);
+        let head_info = ActiveHead {
+            head_id: head.id(),
+            adaptation: adaptation.to_owned(),
+            accuracy: head.report.accuracy,
+        };
+        let headed = HeadedClassifier::new(base, head)
+            .map_err(|e| JobError::Corrupt(format!("head: {e}")))?;
+        let model_id = headed.model_id().to_owned();
+        let index =
+            Arc::new(PredictionIndex::load(&self.queue, &self.imagery_id, &model_id).await?);
+        let next = Arc::new(ActiveModel {
+            model_id,
+            classifier: Some(Arc::new(headed)),
+            index,
+            threshold,
+            head: Some(head_info),
+        });
+        match self.active.write() {
+            Ok(mut a) => *a = next,
+            Err(poisoned) => *poisoned.into_inner() = next,
+        }
+        Ok(())
     }
 
     /// Why jobs cannot run here, if they cannot.
     pub fn why_not_running(&self) -> Option<&'static str> {
-        if self.classifier.is_none() {
+        if self.active().classifier.is_none() {
             Some("the roof classifier is not loaded: start the server with --roof-classifier")
         } else if self.imagery.is_none() {
             Some("no imagery service is configured: start the server with --imagery-url")
@@ -89,24 +181,39 @@ impl RoofJobs {
         }
     }
 
-    /// Starts `n` workers (none without a classifier and imagery); they run until aborted.
+    /// Starts `n` workers (none without a classifier and imagery); they run until aborted. Each
+    /// round uses the model in use when it starts.
     pub fn spawn_workers(
         self: &Arc<Self>,
         n: usize,
         config: WorkerConfig,
     ) -> Vec<tokio::task::JoinHandle<()>> {
-        let (Some(imagery), Some(classifier)) = (self.imagery.clone(), self.classifier.clone())
+        let (Some(imagery), Some(_)) = (self.imagery.clone(), self.active().classifier.clone())
         else {
             return Vec::new();
         };
         (0..n)
             .map(|_| {
-                let index = self.index.clone();
-                let on_done = Arc::new(
-                    move |job: &super::ClaimedJob, p: &crate::classifier::Prediction, ms: f64| {
-                        index.insert(job.osm_id.clone(), job.footprint_hash.clone(), *p, ms);
-                    },
-                );
+                let jobs = self.clone();
+                let current: Arc<CurrentModel> = Arc::new(move || {
+                    let active = jobs.active();
+                    let classifier = active.classifier.clone()?;
+                    let on_done: SharedOnDone = Arc::new(
+                        move |job: &super::ClaimedJob,
+                              p: &crate::classifier::Prediction,
+                              ms: f64| {
+                            if job.model_id == active.model_id {
+                                active.index.insert(
+                                    job.osm_id.clone(),
+                                    job.footprint_hash.clone(),
+                                    *p,
+                                    ms,
+                                );
+                            }
+                        },
+                    );
+                    Some((classifier, on_done))
+                });
                 let jobs = self.clone();
                 let after_round = Arc::new(move |report: &RoundReport| {
                     jobs.metrics
@@ -118,9 +225,8 @@ impl RoofJobs {
                 tokio::spawn(run_worker(
                     self.queue.clone(),
                     imagery.clone(),
-                    classifier.clone(),
+                    current,
                     config,
-                    on_done,
                     after_round,
                 ))
             })

@@ -49,6 +49,11 @@ impl SqliteJobQueue {
     pub fn new(pool: SqlitePool) -> Self {
         Self { pool }
     }
+
+    /// The cache database the queue lives in.
+    pub fn pool(&self) -> &SqlitePool {
+        &self.pool
+    }
 }
 
 impl RoofJobQueue for SqliteJobQueue {

@@ -47,6 +47,10 @@ pub type OnDone<'a> = &'a (dyn Fn(&ClaimedJob, &Prediction, f64) + Send + Sync);
 /// [`OnDone`], shared by a long-running worker.
 pub type SharedOnDone = Arc<dyn Fn(&ClaimedJob, &Prediction, f64) + Send + Sync>;
 
+/// The classifier a long-running worker uses for its next round, and what to do with each job
+/// done; `None` when none is loaded.
+pub type CurrentModel = dyn Fn() -> Option<(Arc<dyn RoofClassifier>, SharedOnDone)> + Send + Sync;
+
 /// Claims and runs one round of jobs; `Ok(None)` when nothing was queued.
 pub async fn run_round<Q: RoofJobQueue>(
     queue: &Q,
@@ -123,17 +127,21 @@ async fn crop_for(
 }
 
 /// Runs rounds for ever (the server aborts it at shutdown; a job it held is taken again when its
-/// lease runs out); pauses `idle` when the queue is empty or the store fails. `after_round` is
-/// told what each round did.
+/// lease runs out); pauses `idle` when the queue is empty, no classifier is loaded or the store
+/// fails. Each round takes the classifier `current` gives then; `after_round` is told what each
+/// round did.
 pub async fn run_worker<Q: RoofJobQueue>(
     queue: Q,
     imagery: Arc<Imagery>,
-    classifier: Arc<dyn RoofClassifier>,
+    current: Arc<CurrentModel>,
     config: WorkerConfig,
-    on_done: SharedOnDone,
     after_round: Arc<dyn Fn(&RoundReport) + Send + Sync>,
 ) {
     loop {
+        let Some((classifier, on_done)) = current() else {
+            tokio::time::sleep(config.idle).await;
+            continue;
+        };
         match run_round(&queue, &imagery, &classifier, config, on_done.as_ref()).await {
             Ok(Some(report)) => after_round(&report),
             Ok(None) => tokio::time::sleep(config.idle).await,

@@ -73,7 +73,8 @@ pub async fn classified_roofs(
         .bbox()
         .map_err(|e| AppError::bad_request("invalid_tile", e.to_string()))?;
     let buildings = state.source.buildings(&bbox).await?;
-    let jobs = state.roofs.clone();
+    let jobs = state.roofs.active();
+    let model_key = jobs.model_key();
     let set = buildings.set.clone();
     let (choice, figures, digest) = crate::pipeline::run_blocking(state, move || {
         let request = area
@@ -122,7 +123,7 @@ pub async fn classified_roofs(
         buildings,
         choice: Arc::new(choice),
         source: RoofSource::Classified {
-            model: state.roofs.model_key(),
+            model: model_key,
             predictions: digest,
         },
         figures,

@@ -287,12 +287,13 @@ pub async fn post_classify(
     }
     // Skips of buildings outside the box say nothing about the request: counted only inside.
     skipped.retain(|_, n| *n > 0);
+    let model_id = roofs.active().model_id.clone();
     let (id, counts) = roofs
         .queue
         .enqueue(
             &bbox.to_string(),
             &roofs.imagery_id,
-            &roofs.model_id,
+            &model_id,
             &jobs,
             skipped,
         )
@@ -304,7 +305,7 @@ pub async fn post_classify(
         counts,
         imagery_id: roofs.imagery_id.clone(),
         imagery_attribution: roofs.imagery_attribution.clone(),
-        model_id: roofs.model_id.clone(),
+        model_id,
     };
     Ok((StatusCode::ACCEPTED, Json(created)).into_response())
 }
@@ -382,6 +383,7 @@ pub async fn predictions(
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
     let bbox = parse_bbox(query.bbox.as_deref(), &state.limits)?;
     let roofs = &state.roofs;
+    let threshold = roofs.active().threshold;
     let stored = roofs.queue.predictions(&bbox, MAX_PREDICTIONS).await?;
     let features: Vec<serde_json::Value> = stored
         .iter()
@@ -402,7 +404,7 @@ pub async fn predictions(
                     "osm_id": s.osm_id,
                     "roof_shape": p.class().name(),
                     "probabilities": probabilities,
-                    "confident": p.confidence() >= roofs.threshold,
+                    "confident": p.confidence() >= threshold,
                     "imagery_id": s.imagery_id,
                     "model_id": s.model_id,
                 }
@@ -413,7 +415,7 @@ pub async fn predictions(
         "type": "FeatureCollection",
         "features": features,
         "imagery_attribution": roofs.imagery_attribution,
-        "threshold": roofs.threshold,
+        "threshold": threshold,
     });
     Ok((
         [(axum::http::header::CONTENT_TYPE, "application/geo+json")],
@@ -423,7 +425,7 @@ pub async fn predictions(
 }
 
 /// The centre of a ring's bounding box.
-fn centre_of(ring: &[[f64; 2]]) -> Option<[f64; 2]> {
+pub(super) fn centre_of(ring: &[[f64; 2]]) -> Option<[f64; 2]> {
     let [w, s, e, n] = ring_bounds(ring)?;
     Some([(w + e) / 2.0, (s + n) / 2.0])
 }

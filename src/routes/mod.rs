@@ -4,6 +4,7 @@
 //! without its OpenAPI description.
 
 mod classify;
+mod classify_adapt;
 mod conditional;
 mod error_bodies;
 mod headers;
@@ -95,6 +96,8 @@ fn api_router() -> OpenApiRouter<AppState> {
         .routes(routes!(classify::post_classify))
         .routes(routes!(classify::predictions))
         .routes(routes!(classify::get_batch, classify::delete_batch))
+        .routes(routes!(classify_adapt::post_adapt))
+        .routes(routes!(classify_adapt::get_adapt))
 }
 
 /// Renames the suffixed paths to the form clients call.

@@ -7,6 +7,7 @@ mod connections;
 pub use connections::ConnectionLimits;
 
 use crate::cache::{TileCache, TileStore, invalidation};
+use crate::classifier::RoofClassifier as _;
 use crate::cli::ServeArgs;
 use crate::db;
 use crate::dem::DemStore;
@@ -147,7 +148,7 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         .max(1);
     let classifier = if args.roof_classifier {
         let c = &args.classifier;
-        match crate::classifier::load_classifier(
+        match crate::classifier::load_onnx(
             c.onnxruntime_lib.as_deref(),
             c.roof_model.as_deref(),
             c.roof_passes,
@@ -190,10 +191,11 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         .await?,
     );
     tracing::info!(
-        predictions = roofs.index.len(),
+        predictions = roofs.active().index.len(),
         imagery = %roofs.imagery_id,
         "roof predictions loaded"
     );
+    let classifier = classifier.map(|c| c as Arc<dyn crate::classifier::RoofClassifier>);
     Ok(AppState::new(ServerState {
         classifier,
         roofs,

@@ -18,6 +18,35 @@ pub struct Orthophoto {
     pub records: Vec<BuildingRecord>,
     pub frame: LocalFrame,
     pub tiles: Mutex<HashMap<(u8, u32, u32), Vec<u8>>>,
+    /// Drawn in a style the model was not trained on: blurred, bands rotated and inverted.
+    pub styled: bool,
+}
+
+/// Another sensor: a 5 x 5 box blur, the bands rotated (green, blue, red) and inverted.
+fn restyle(img: &mut Image) {
+    let (w, h) = (img.width, img.height);
+    let src = img.pixels.clone();
+    for y in 0..h {
+        for x in 0..w {
+            let mut sum = [0.0f32; 3];
+            let mut n = 0.0;
+            for dy in -2i64..=2 {
+                for dx in -2i64..=2 {
+                    let (sx, sy) = (x as i64 + dx, y as i64 + dy);
+                    if sx >= 0 && sy >= 0 && (sx as usize) < w && (sy as usize) < h {
+                        let p = src[sy as usize * w + sx as usize];
+                        for k in 0..3 {
+                            sum[k] += p[k];
+                        }
+                        n += 1.0;
+                    }
+                }
+            }
+            // A false-colour negative: what another sensor's bands can look like.
+            let v = [sum[1] / n, sum[2] / n, sum[0] / n];
+            img.pixels[y * w + x] = std::array::from_fn(|k| (1.0 - v[k]).clamp(0.0, 1.0));
+        }
+    }
 }
 
 fn render_tile(o: &Orthophoto, t: TileCoord) -> Vec<u8> {
@@ -31,7 +60,10 @@ fn render_tile(o: &Orthophoto, t: TileCoord) -> Vec<u8> {
         height: 256,
         skew: [0.0, 0.0],
     };
-    let img: Image = render_orthophoto(&o.records, &o.frame, &camera, Palette::Holdout, 11);
+    let mut img: Image = render_orthophoto(&o.records, &o.frame, &camera, Palette::Holdout, 11);
+    if o.styled {
+        restyle(&mut img);
+    }
     let rgb: Vec<u8> = img.to_srgb8().iter().flatten().copied().collect();
     let mut png = Vec::new();
     image::ImageEncoder::write_image(
@@ -155,6 +187,7 @@ pub async fn imagery_server_with_tiles() -> (String, Arc<Orthophoto>) {
         records: all,
         frame: LocalFrame::new(8.3995, 49.055, 0.0),
         tiles: Mutex::new(HashMap::new()),
+        styled: false,
     });
     let app = axum::Router::new()
         .route("/ortho/{z}/{x}/{y}", axum::routing::get(good))
@@ -166,4 +199,22 @@ pub async fn imagery_server_with_tiles() -> (String, Arc<Orthophoto>) {
     let addr = listener.local_addr().unwrap();
     tokio::spawn(async move { axum::serve(listener, app).await.unwrap() });
     (format!("http://{addr}"), o)
+}
+
+/// An imagery server drawing `records` (with the roof shapes their tags say) in a style the model
+/// was not trained on, at `/styled/{z}/{x}/{y}`; returns its base URL.
+pub async fn styled_imagery_server(records: Vec<BuildingRecord>) -> String {
+    let o = Arc::new(Orthophoto {
+        records,
+        frame: LocalFrame::new(8.3995, 49.055, 0.0),
+        tiles: Mutex::new(HashMap::new()),
+        styled: true,
+    });
+    let app = axum::Router::new()
+        .route("/styled/{z}/{x}/{y}", axum::routing::get(good))
+        .with_state(o);
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    tokio::spawn(async move { axum::serve(listener, app).await.unwrap() });
+    format!("http://{addr}")
 }

@@ -1,0 +1,186 @@
+//! Adapting the roof classifier to the served imagery over HTTP (docs/method.md section 13):
+//! `POST /classify/adapt` takes the buildings of a box whose `roof:shape` OpenStreetMap tags as
+//! examples, crops and embeds them and fits a new head in the background; `GET
+//! /classify/adapt/{id}` reports its progress and, once fitted, its cross-validated report. The
+//! head is then in use for this imagery: `POST /classify` queues new predictions made with it.
+
+use super::classify::centre_of;
+use super::params::parse_bbox;
+use crate::error::{AppError, ErrorBody};
+use crate::jobs::adapt::{
+    AdaptationStatus, ClassCounts, new_adaptation_id, run_adaptation, tagged_examples,
+};
+use crate::state::AppState;
+use axum::Json;
+use axum::extract::rejection::{JsonRejection, PathRejection};
+use axum::extract::{Path, State};
+use axum::http::StatusCode;
+use axum::response::{IntoResponse, Response};
+use citymesh_core::roof_image::RoofClass;
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+/// Where to learn from.
+#[derive(Debug, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct AdaptRequest {
+    /// The area as `minLon,minLat,maxLon,maxLat`: its buildings whose footprint's centre lies in
+    /// it and whose `roof:shape` is flat, gabled, hipped or pyramidal are the examples.
+    #[schema(example = "8.396,49.052,8.403,49.058")]
+    pub bbox: String,
+}
+
+/// An adaptation as started.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct AdaptationCreated {
+    /// 128 random bits, hex.
+    pub id: String,
+    /// Where to follow it.
+    pub progress: String,
+    /// Tagged buildings found, by class (at most 300 per class are used).
+    pub examples: ClassCounts,
+    pub imagery_id: String,
+    pub model_id: String,
+}
+
+fn too_few(detail: String) -> AppError {
+    AppError::Document {
+        status: StatusCode::UNPROCESSABLE_ENTITY,
+        code: "too_few_examples",
+        detail,
+        feature: None,
+        field: Some("bbox".into()),
+    }
+}
+
+/// Adapt the roof classifier to the served imagery from the area's tagged roofs.
+///
+/// Takes the buildings of the box whose `roof:shape` tag names one of the three classes (flat;
+/// gabled; hipped or pyramidal), crops each from the imagery as any building is cropped, and fits
+/// a new head on the model's embedding of them (a logistic regression, cross-validated in 5
+/// folds; docs/method.md section 13). Answers at once; follow it at `GET
+/// /classify/adapt/{id}`. When fitted, the head is in use for this imagery: predictions queued
+/// afterwards (`POST /classify`) are made with it and record its id in their `model_id`. Needs
+/// at least 20 examples per class; one adaptation at a time per imagery.
+#[utoipa::path(post, path = "/classify/adapt", tag = "classification", request_body = AdaptRequest,
+    responses(
+        (status = 202, description = "The adaptation is running", body = AdaptationCreated),
+        (status = 400, description = "The body or the bbox is invalid", body = ErrorBody),
+        (status = 409, description = "An adaptation is already running for this imagery", body = ErrorBody),
+        (status = 413, description = "The body is too large", body = ErrorBody),
+        (status = 422, description = "The area has fewer than 20 tagged buildings of a class", body = ErrorBody),
+        (status = 500, description = "An internal failure; the server log has the cause", body = ErrorBody),
+        (status = 502, description = "Overpass failed or sent an incomplete answer", body = ErrorBody),
+        (status = 503, description = "Classification is not available on this server (no classifier or no imagery), or Overpass is busy", body = ErrorBody),
+        (status = 504, description = "Overpass did not answer in time", body = ErrorBody),
+    ))]
+pub async fn post_adapt(
+    State(state): State<AppState>,
+    body: Result<Json<AdaptRequest>, JsonRejection>,
+) -> Result<Response, AppError> {
+    let Json(request) = body.map_err(|e| {
+        AppError::bad_request(
+            "invalid_body",
+            format!(
+                "{}; send JSON like {{\"bbox\": \"8.396,49.052,8.403,49.058\"}}",
+                e.body_text()
+            ),
+        )
+    })?;
+    let roofs = state.roofs.clone();
+    if let Some(why) = roofs.why_not_running() {
+        return Err(AppError::Unavailable {
+            code: "classification_unavailable",
+            detail: format!("roof classification is not available: {why}"),
+            retry_after_secs: 3600,
+        });
+    }
+    let Some(base) = roofs.base.as_ref() else {
+        return Err(AppError::Unavailable {
+            code: "classification_unavailable",
+            detail: "the roof classifier is not loaded: start the server with --roof-classifier"
+                .into(),
+            retry_after_secs: 3600,
+        });
+    };
+    let model_id = crate::classifier::RoofClassifier::model_id(base.as_ref()).to_owned();
+    let bbox = parse_bbox(Some(&request.bbox), &state.limits)?;
+    if let Some(running) = roofs.adaptations.running(&roofs.imagery_id).await? {
+        return Err(AppError::Document {
+            status: StatusCode::CONFLICT,
+            code: "adaptation_running",
+            detail: format!(
+                "adaptation {running} is running for this imagery; follow it at \
+                 /classify/adapt/{running} and ask again when it has ended"
+            ),
+            feature: None,
+            field: None,
+        });
+    }
+    let buildings = state.source.buildings(&bbox).await?;
+    let examples = tagged_examples(buildings.set.records(), |ring| {
+        centre_of(ring).is_some_and(|c| bbox.contains(c[0], c[1]))
+    });
+    let mut counts = [0usize; 3];
+    examples.iter().for_each(|e| counts[e.class.index()] += 1);
+    let min = crate::classifier::head::MIN_PER_CLASS;
+    if counts.iter().any(|&n| n < min) {
+        let found: Vec<String> = RoofClass::ALL
+            .iter()
+            .map(|c| format!("{} {}", counts[c.index()], c.name()))
+            .collect();
+        return Err(too_few(format!(
+            "the area has {} tagged buildings; at least {min} of each class are needed: choose a \
+             larger area or one with more roof:shape tags (the shipped head stays in use)",
+            found.join(", ")
+        )));
+    }
+    let id = new_adaptation_id()?;
+    roofs
+        .adaptations
+        .create(&id, &bbox.to_string(), &roofs.imagery_id, &model_id, counts)
+        .await?;
+    let store = roofs.adaptations.clone();
+    tokio::spawn(run_adaptation(roofs.clone(), store, id.clone(), examples));
+    let created = AdaptationCreated {
+        progress: format!("/classify/adapt/{id}"),
+        id,
+        examples: ClassCounts {
+            flat: counts[0] as u64,
+            gabled: counts[1] as u64,
+            hipped: counts[2] as u64,
+        },
+        imagery_id: roofs.imagery_id.clone(),
+        model_id,
+    };
+    Ok((StatusCode::ACCEPTED, Json(created)).into_response())
+}
+
+/// An adaptation's progress and report.
+#[utoipa::path(get, path = "/classify/adapt/{id}", tag = "classification",
+    params(("id" = String, Path, description = "The id `POST /classify/adapt` answered (32 hex digits)")),
+    responses(
+        (status = 200, description = "Its state, progress and, once fitted, its report", body = AdaptationStatus),
+        (status = 400, description = "The id is not 32 hex digits", body = ErrorBody),
+        (status = 404, description = "No such adaptation", body = ErrorBody),
+        (status = 500, description = "An internal failure; the server log has the cause", body = ErrorBody),
+    ))]
+pub async fn get_adapt(
+    State(state): State<AppState>,
+    path: Result<Path<String>, PathRejection>,
+) -> Result<Json<AdaptationStatus>, AppError> {
+    let Path(id) = path.map_err(|e| AppError::bad_request("invalid_id", e.body_text()))?;
+    if id.len() != 32 || !id.bytes().all(|b| b.is_ascii_hexdigit()) {
+        return Err(AppError::bad_request(
+            "invalid_id",
+            format!("'{id}' is not an adaptation id (32 hex digits)"),
+        ));
+    }
+    state
+        .roofs
+        .adaptations
+        .get(&id.to_ascii_lowercase())
+        .await?
+        .map(Json)
+        .ok_or_else(|| AppError::not_found("no_such_adaptation", format!("no adaptation {id}")))
+}
