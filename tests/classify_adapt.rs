@@ -11,19 +11,15 @@
 
 mod common;
 
-use axum::body::Body;
-use axum::http::{Request, StatusCode};
+use axum::http::StatusCode;
 use citymesh::cli::ServeArgs;
 use citymesh::jobs::worker::WorkerConfig;
 use citymesh_core::geo::TileCoord;
 use citymesh_core::osm::{BuildingRecord, read_buildings, write_overpass_json};
 use clap::Parser;
-use common::Answer;
-use http_body_util::BodyExt;
 use std::collections::HashMap;
 use std::path::Path;
 use std::time::Duration;
-use tower::ServiceExt;
 
 /// The examples: the west part of the area.
 const WEST: &str = "8.3960,49.0520,8.3995,49.0580";
@@ -93,30 +89,10 @@ fn kirchfeld(
     (truth, path, shapes)
 }
 
-async fn send(app: &axum::Router, request: Request<Body>) -> Answer {
-    let response = app.clone().oneshot(request).await.unwrap();
-    let status = response.status();
-    let headers = response.headers().clone();
-    let body = response.into_body().collect().await.unwrap().to_bytes();
-    Answer {
-        status,
-        headers,
-        body: body.to_vec(),
-    }
-}
-
-async fn post_json(app: &axum::Router, uri: &str, body: serde_json::Value) -> Answer {
-    let request = Request::post(uri)
-        .header("content-type", "application/json")
-        .body(Body::from(body.to_string()))
-        .unwrap();
-    send(app, request).await
-}
-
 /// Classifies the east part and waits; answers how many of its predictions by the model now in
 /// use match the assigned shapes, of how many.
 async fn classify_east(app: &axum::Router, shapes: &HashMap<String, String>) -> (usize, usize) {
-    let created = post_json(app, "/classify", serde_json::json!({"bbox": EAST})).await;
+    let created = common::post_json(app, "/classify", serde_json::json!({"bbox": EAST})).await;
     assert_eq!(created.status, StatusCode::ACCEPTED, "{}", created.text());
     let batch = created.json();
     let model_id = batch["model_id"].as_str().unwrap().to_owned();
@@ -190,7 +166,7 @@ async fn adapting_on_the_tagged_roofs_of_an_area_classifies_its_untagged_roofs_b
     assert_eq!(before.status, StatusCode::OK);
 
     // Too small an area: said at once, nothing changes.
-    let small = post_json(
+    let small = common::post_json(
         &app,
         "/classify/adapt",
         serde_json::json!({"bbox": "8.3960,49.0520,8.3965,49.0525"}),
@@ -204,7 +180,8 @@ async fn adapting_on_the_tagged_roofs_of_an_area_classifies_its_untagged_roofs_b
     );
     assert!(small.text().contains("at least 20"), "{}", small.text());
 
-    let created = post_json(&app, "/classify/adapt", serde_json::json!({"bbox": WEST})).await;
+    let created =
+        common::post_json(&app, "/classify/adapt", serde_json::json!({"bbox": WEST})).await;
     assert_eq!(created.status, StatusCode::ACCEPTED, "{}", created.text());
     let created = created.json();
     let id = created["id"].as_str().unwrap().to_owned();

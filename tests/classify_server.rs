@@ -17,12 +17,9 @@ use citymesh::state::AppState;
 use citymesh_core::geo::{GeoBbox, TileCoord};
 use citymesh_core::osm::{BuildingRecord, read_buildings, write_overpass_json};
 use clap::Parser;
-use common::Answer;
-use http_body_util::BodyExt;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
-use tower::ServiceExt;
 
 /// About 500 x 650 m of Kirchfeld with many flat and gabled tags.
 const AREA: &str = "8.396,49.052,8.403,49.058";
@@ -69,26 +66,6 @@ async fn server(db: &Path, osm: &Path, imagery_url: &str) -> (axum::Router, AppS
     assert!(state.classifier.is_some(), "the classifier did not load");
     state.roofs.spawn_workers(1, WorkerConfig::default());
     (citymesh::app(state.clone()), state)
-}
-
-async fn send(app: &axum::Router, request: Request<Body>) -> Answer {
-    let response = app.clone().oneshot(request).await.unwrap();
-    let status = response.status();
-    let headers = response.headers().clone();
-    let body = response.into_body().collect().await.unwrap().to_bytes();
-    Answer {
-        status,
-        headers,
-        body: body.to_vec(),
-    }
-}
-
-async fn post_json(app: &axum::Router, uri: &str, body: serde_json::Value) -> Answer {
-    let request = Request::post(uri)
-        .header("content-type", "application/json")
-        .body(Body::from(body.to_string()))
-        .unwrap();
-    send(app, request).await
 }
 
 /// Polls a batch until no job is queued or running.
@@ -157,12 +134,12 @@ async fn stripped_kirchfeld_classified_through_the_api_agrees_with_its_tags_and_
     assert_eq!(before.body, plain.body);
 
     // Queue the area, with the tagged buildings (all of them, once stripped) and a bad request.
-    let bad = post_json(&app, "/classify", serde_json::json!({"bbox": "nonsense"})).await;
+    let bad = common::post_json(&app, "/classify", serde_json::json!({"bbox": "nonsense"})).await;
     assert_eq!(bad.status, StatusCode::BAD_REQUEST, "{}", bad.json());
-    let bad = post_json(&app, "/classify", serde_json::json!({"box": AREA})).await;
+    let bad = common::post_json(&app, "/classify", serde_json::json!({"box": AREA})).await;
     assert_eq!(bad.status, StatusCode::BAD_REQUEST);
     assert!(bad.json()["detail"].as_str().unwrap().contains("bbox"));
-    let created = post_json(&app, "/classify", serde_json::json!({"bbox": AREA})).await;
+    let created = common::post_json(&app, "/classify", serde_json::json!({"bbox": AREA})).await;
     assert_eq!(created.status, StatusCode::ACCEPTED, "{}", created.json());
     let created = created.json();
     let id = created["id"].as_i64().unwrap();
@@ -171,7 +148,7 @@ async fn stripped_kirchfeld_classified_through_the_api_agrees_with_its_tags_and_
     assert_eq!(created["imagery_id"], "ortho");
     assert_eq!(created["imagery_attribution"], "rendered by citymesh");
     // The same area again: nothing new to queue.
-    let again = post_json(&app, "/classify", serde_json::json!({"bbox": AREA})).await;
+    let again = common::post_json(&app, "/classify", serde_json::json!({"bbox": AREA})).await;
     assert_eq!(again.json()["counts"]["queued"], 0);
     assert_eq!(again.json()["counts"]["already"].as_u64().unwrap(), queued);
 
@@ -223,11 +200,11 @@ async fn stripped_kirchfeld_classified_through_the_api_agrees_with_its_tags_and_
     assert!(compared >= 100, "{compared}");
     assert!(share >= 0.80, "{confusion:?}");
     // The predictions' own FeatureCollection names the same buildings: all classified already.
-    let again = post_json(&app, "/classify", collection.clone()).await;
+    let again = common::post_json(&app, "/classify", collection.clone()).await;
     assert_eq!(again.status, StatusCode::ACCEPTED, "{}", again.json());
     assert_eq!(again.json()["counts"]["queued"], 0);
     assert_eq!(again.json()["counts"]["already"].as_u64().unwrap(), queued);
-    let no_id = post_json(
+    let no_id = common::post_json(
         &app,
         "/classify",
         serde_json::json!({"type": "FeatureCollection", "features": [{"type": "Feature", "properties": {}, "geometry": null}]}),
@@ -348,7 +325,7 @@ async fn stripped_kirchfeld_classified_through_the_api_agrees_with_its_tags_and_
     ] {
         assert_eq!(common::get(&app, uri).await.status, status, "{uri}");
     }
-    let cancel = send(
+    let cancel = common::send(
         &app,
         Request::delete(format!("/classify/{id}"))
             .body(Body::empty())
@@ -380,7 +357,7 @@ async fn classification_is_unavailable_without_classifier_or_imagery() {
         &["--osm", osm.to_str().unwrap()],
     )
     .await;
-    let answer = post_json(&app, "/classify", serde_json::json!({"bbox": AREA})).await;
+    let answer = common::post_json(&app, "/classify", serde_json::json!({"bbox": AREA})).await;
     assert_eq!(answer.status, StatusCode::SERVICE_UNAVAILABLE);
     assert!(
         answer.json()["detail"]

@@ -156,6 +156,7 @@ async fn openapi_describes_every_route_with_binary_glb_and_json_errors() {
             "GET /3dtiles/area/{bbox}/subtrees/{level}/{x}/{y}.subtree subtree",
             "GET /3dtiles/tileset.json tileset",
             "GET /cesium cesium",
+            "GET /classify/adapt/{id} get_adapt",
             "GET /classify/predictions predictions",
             "GET /classify/{id} get_batch",
             "GET /health health",
@@ -168,6 +169,7 @@ async fn openapi_describes_every_route_with_binary_glb_and_json_errors() {
             "GET /tiles/{z}/{x}/{y}.glb tile_glb",
             "GET /viewer.js viewer_js",
             "POST /classify post_classify",
+            "POST /classify/adapt post_adapt",
             "POST /scene.glb post_scene",
         ]
     );

@@ -10,9 +10,6 @@ use crate::jobs::adapt::{
     AdaptationStore, Progress, fit_on_imagery, new_adaptation_id, tagged_examples,
 };
 use crate::jobs::ring_bounds;
-use crate::source::read_osm_file;
-use citymesh_core::geo::GeoBbox;
-use citymesh_core::osm::read_buildings;
 use citymesh_core::roof_image::RoofClass;
 use serde_json::json;
 
@@ -61,18 +58,7 @@ pub fn run_labels(args: &AdaptRoofsArgs) -> anyhow::Result<bool> {
 /// to `--out` and stores it in `--cache-db` for that imagery. `Ok(false)` when too few examples
 /// could be cropped.
 pub async fn run_osm(args: &AdaptRoofsArgs) -> anyhow::Result<bool> {
-    let bbox: Option<GeoBbox> = args
-        .bbox
-        .as_deref()
-        .map(str::parse)
-        .transpose()
-        .map_err(|e| anyhow::anyhow!("--bbox: {e}"))?;
-    let mut records = Vec::new();
-    for path in &args.osm {
-        let bytes = read_osm_file(path)?;
-        let osm = read_buildings(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-        records.extend(osm.buildings);
-    }
+    let (bbox, records) = super::classify_area::read_area(&args.osm, args.bbox.as_deref())?;
     let examples = tagged_examples(&records, |ring| {
         bbox.as_ref().is_none_or(|b| {
             ring_bounds(ring).is_some_and(|[w, s, e, n]| b.contains((w + e) / 2.0, (s + n) / 2.0))

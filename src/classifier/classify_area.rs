@@ -10,25 +10,32 @@ use crate::jobs::{
 use crate::source::read_osm_file;
 use citymesh_core::building::roof::RoofShape;
 use citymesh_core::geo::GeoBbox;
-use citymesh_core::osm::read_buildings;
+use citymesh_core::osm::{BuildingRecord, read_buildings};
 use citymesh_core::roof_image::RoofClass;
 use serde_json::json;
 use std::collections::{BTreeMap, HashMap};
 
-/// Runs the command; returns the summary it prints.
-pub async fn run(args: &ClassifyArgs) -> anyhow::Result<String> {
-    let bbox: Option<GeoBbox> = args
-        .bbox
-        .as_deref()
+/// The `--bbox` as given and every building of the `--osm` files.
+pub(super) fn read_area(
+    osm: &[std::path::PathBuf],
+    bbox: Option<&str>,
+) -> anyhow::Result<(Option<GeoBbox>, Vec<BuildingRecord>)> {
+    let bbox: Option<GeoBbox> = bbox
         .map(str::parse)
         .transpose()
         .map_err(|e| anyhow::anyhow!("--bbox: {e}"))?;
     let mut records = Vec::new();
-    for path in &args.osm {
+    for path in osm {
         let bytes = read_osm_file(path)?;
         let osm = read_buildings(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
         records.extend(osm.buildings);
     }
+    Ok((bbox, records))
+}
+
+/// Runs the command; returns the summary it prints.
+pub async fn run(args: &ClassifyArgs) -> anyhow::Result<String> {
+    let (bbox, mut records) = read_area(&args.osm, args.bbox.as_deref())?;
     if let Some(b) = &bbox {
         records.retain(|r| {
             r.outers

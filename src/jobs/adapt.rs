@@ -8,6 +8,7 @@
 use super::queue::{JobError, NewJob};
 use super::select::{Selection, select_buildings};
 use super::service::RoofJobs;
+use super::sqlite::now_ms;
 use crate::classifier::head::{AdaptError, MIN_PER_CLASS, RoofHead, fit_head};
 use crate::classifier::onnx::OnnxClassifier;
 use crate::imagery::{Imagery, TileMemo, crop_footprint};
@@ -118,12 +119,6 @@ pub fn tagged_examples(
 #[derive(Clone)]
 pub struct AdaptationStore {
     pool: SqlitePool,
-}
-
-fn now_ms() -> i64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| i64::try_from(d.as_millis()).unwrap_or(i64::MAX))
 }
 
 /// 128 random bits as hex.

@@ -239,11 +239,7 @@ pub async fn post_classify(
     };
     let roofs = state.roofs.clone();
     if let Some(why) = roofs.why_not_running() {
-        return Err(AppError::Unavailable {
-            code: "classification_unavailable",
-            detail: format!("roof classification is not available: {why}"),
-            retry_after_secs: 3600,
-        });
+        return Err(classification_unavailable(why));
     }
     let bbox = parse_bbox(Some(&request.bbox), &state.limits)?;
     let buildings = state.source.buildings(&bbox).await?;
@@ -425,6 +421,15 @@ pub async fn predictions(
 }
 
 /// The centre of a ring's bounding box.
+/// 503: jobs cannot run on this server, and why.
+pub(super) fn classification_unavailable(why: &str) -> AppError {
+    AppError::Unavailable {
+        code: "classification_unavailable",
+        detail: format!("roof classification is not available: {why}"),
+        retry_after_secs: 3600,
+    }
+}
+
 pub(super) fn centre_of(ring: &[[f64; 2]]) -> Option<[f64; 2]> {
     let [w, s, e, n] = ring_bounds(ring)?;
     Some([(w + e) / 2.0, (s + n) / 2.0])

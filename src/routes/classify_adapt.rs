@@ -4,7 +4,7 @@
 //! /classify/adapt/{id}` reports its progress and, once fitted, its cross-validated report. The
 //! head is then in use for this imagery: `POST /classify` queues new predictions made with it.
 
-use super::classify::centre_of;
+use super::classify::{centre_of, classification_unavailable};
 use super::params::parse_bbox;
 use crate::error::{AppError, ErrorBody};
 use crate::jobs::adapt::{
@@ -89,19 +89,12 @@ pub async fn post_adapt(
     })?;
     let roofs = state.roofs.clone();
     if let Some(why) = roofs.why_not_running() {
-        return Err(AppError::Unavailable {
-            code: "classification_unavailable",
-            detail: format!("roof classification is not available: {why}"),
-            retry_after_secs: 3600,
-        });
+        return Err(classification_unavailable(why));
     }
     let Some(base) = roofs.base.as_ref() else {
-        return Err(AppError::Unavailable {
-            code: "classification_unavailable",
-            detail: "the roof classifier is not loaded: start the server with --roof-classifier"
-                .into(),
-            retry_after_secs: 3600,
-        });
+        return Err(classification_unavailable(
+            "the roof classifier is not loaded: start the server with --roof-classifier",
+        ));
     };
     let model_id = crate::classifier::RoofClassifier::model_id(base.as_ref()).to_owned();
     let bbox = parse_bbox(Some(&request.bbox), &state.limits)?;

@@ -130,6 +130,28 @@ impl Answer {
     }
 }
 
+/// Sends a request through the router.
+pub async fn send(app: &axum::Router, request: Request<Body>) -> Answer {
+    let response = app.clone().oneshot(request).await.unwrap();
+    let status = response.status();
+    let headers = response.headers().clone();
+    let body = response.into_body().collect().await.unwrap().to_bytes();
+    Answer {
+        status,
+        headers,
+        body: body.to_vec(),
+    }
+}
+
+/// POSTs JSON.
+pub async fn post_json(app: &axum::Router, uri: &str, body: serde_json::Value) -> Answer {
+    let request = Request::post(uri)
+        .header("content-type", "application/json")
+        .body(Body::from(body.to_string()))
+        .unwrap();
+    send(app, request).await
+}
+
 pub async fn get(app: &axum::Router, uri: &str) -> Answer {
     let response = app
         .clone()

@@ -1,13 +1,14 @@
 //! The targets: the OSM readers (PBF, XML, Overpass JSON), the GeoJSON reader, the HGT parser
-//! with the ground it builds, the text parsers of request parameters and tags, and the building
-//! generator through to a closed mesh.
+//! with the ground it builds, the text parsers of request parameters and tags, the building
+//! generator through to a closed mesh, and labelled roof footprints and classifier heads.
 
 use citymesh_core::building::set::BuildingSet;
 use citymesh_core::building::tags::{
     parse_angle, parse_colour, parse_direction, parse_length, parse_levels,
 };
-use citymesh_core::geo::{GeoBbox, TileCoord};
+use citymesh_core::geo::{GeoBbox, TileCoord, parse_wkt_polygon};
 use citymesh_core::geojson::{GeoJsonLimits, read_geojson};
+use citymesh_core::learn::SoftmaxRegression;
 use citymesh_core::osm::read_buildings;
 use citymesh_core::scene::Scene;
 use citymesh_core::terrain::{ElevationModel, HgtTile};
@@ -32,7 +33,7 @@ const GEOJSON_SEED: &str = r#"{"type": "FeatureCollection", "bbox": [8.4, 49.0, 
  [[8.4007, 49.0006], [8.40075, 49.00065], [8.40072, 49.0007], [8.4007, 49.0006]]]]}}]}"#;
 
 /// Every target.
-pub const TARGETS: [Target; 7] = [
+pub const TARGETS: [Target; 8] = [
     Target {
         name: "osm_pbf",
         run: osm,
@@ -78,6 +79,15 @@ pub const TARGETS: [Target; 7] = [
         run: super::building::building,
         seeds: &[],
         inline: &[],
+    },
+    Target {
+        name: "roof_labels",
+        run: roof_labels,
+        seeds: &[],
+        inline: &[
+            "POLYGON ((366 0.39, 365.6 291, 42.1 290.6, 0 97.6, 42.5 0, 366 0.39), (1 1, 2 1, 2 2, 1 1))",
+            r#"{"classes":3,"dims":2,"mean":[0.5,1],"scale":[2,0.25],"weights":[1,-1,0,2,-3,0.5],"bias":[0,0.1,-0.1]}"#,
+        ],
     },
 ];
 
@@ -134,6 +144,29 @@ fn hgt(bytes: &[u8]) {
             "ground with a non-finite position"
         );
         let _ = scene.to_glb();
+    }
+}
+
+/// What a labelled roof set and a roof-classifier head file hold: a footprint in WKT, and a
+/// head's regression as JSON, run on a row made from the input.
+fn roof_labels(bytes: &[u8]) {
+    let text = String::from_utf8_lossy(bytes);
+    if let Ok(rings) = parse_wkt_polygon(&text, 10_000) {
+        assert!(rings.iter().all(|r| r.len() >= 3));
+        assert!(
+            rings
+                .iter()
+                .flatten()
+                .all(|p| p[0].is_finite() && p[1].is_finite())
+        );
+    }
+    if let Ok(model) = serde_json::from_slice::<SoftmaxRegression>(bytes) {
+        let row: Vec<f32> = (0..model.dims.min(4096))
+            .map(|i| f32::from(bytes[i % bytes.len().max(1)]))
+            .collect();
+        if let Some(p) = model.probabilities(&row) {
+            assert_eq!(p.len(), model.classes);
+        }
     }
 }
 

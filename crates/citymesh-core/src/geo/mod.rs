@@ -8,6 +8,7 @@ mod local_frame;
 mod tile;
 mod tile_range;
 mod utm;
+mod wkt;
 
 pub use bbox::{BboxError, GeoBbox, MAX_MERCATOR_LAT};
 pub use ecef::{ecef_to_geodetic, geodetic_to_ecef};
@@ -16,3 +17,4 @@ pub use local_frame::{LocalFrame, WGS84_A, WGS84_E2};
 pub use tile::{MAX_ZOOM, TileCoord, TileError, mercator_y};
 pub use tile_range::TileRange;
 pub use utm::UtmZone;
+pub use wkt::parse_wkt_polygon;

@@ -184,7 +184,7 @@ impl SoftmaxRegression {
         self.classes >= 2
             && self.mean.len() == self.dims
             && self.scale.len() == self.dims
-            && self.weights.len() == self.classes * self.dims
+            && self.classes.checked_mul(self.dims) == Some(self.weights.len())
             && self.bias.len() == self.classes
             && self.scale.iter().all(|s| s.is_finite() && *s != 0.0)
             && self
