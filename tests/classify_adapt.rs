@@ -45,6 +45,25 @@ fn centre(r: &BuildingRecord) -> Option<[f64; 2]> {
     Some([(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0])
 }
 
+/// The buildings of an OSM file.
+fn osm_records(path: &Path) -> Vec<BuildingRecord> {
+    read_buildings(&std::fs::read(path).unwrap())
+        .unwrap()
+        .buildings
+}
+
+/// The id and centre of the first building (not a part) whose centre lies in `bbox`.
+fn truth_point(records: &[BuildingRecord], bbox: &str) -> (String, [f64; 2]) {
+    records
+        .iter()
+        .filter(|r| !r.is_part)
+        .find_map(|r| {
+            let c = centre(r)?;
+            inside(bbox, c).then(|| (r.id.to_string(), c))
+        })
+        .unwrap()
+}
+
 fn inside(bbox: &str, p: [f64; 2]) -> bool {
     let b: Vec<f64> = bbox.split(',').map(|v| v.parse().unwrap()).collect();
     p[0] >= b[0] && p[0] < b[2] && p[1] >= b[1] && p[1] < b[3]
@@ -91,8 +110,12 @@ fn kirchfeld(
 
 /// Classifies the east part and waits; answers how many of its predictions by the model now in
 /// use match the assigned shapes, of how many.
-async fn classify_east(app: &axum::Router, shapes: &HashMap<String, String>) -> (usize, usize) {
-    let created = common::post_json(app, "/classify", serde_json::json!({"bbox": EAST})).await;
+async fn classify_east(
+    app: &axum::Router,
+    shapes: &HashMap<String, String>,
+    bbox: serde_json::Value,
+) -> (usize, usize) {
+    let created = common::post_json(app, "/classify", serde_json::json!({ "bbox": bbox })).await;
     assert_eq!(created.status, StatusCode::ACCEPTED, "{}", created.text());
     let batch = created.json();
     let model_id = batch["model_id"].as_str().unwrap().to_owned();
@@ -161,9 +184,18 @@ async fn adapting_on_the_tagged_roofs_of_an_area_classifies_its_untagged_roofs_b
         tile.z, tile.x, tile.y
     );
 
-    let (shipped_right, shipped_total) = classify_east(&app, &shapes).await;
+    let (shipped_right, shipped_total) = classify_east(&app, &shapes, EAST.into()).await;
     let before = common::get(&app, &tile_uri).await;
     assert_eq!(before.status, StatusCode::OK);
+
+    // A box array of three numbers is no box.
+    let bad = common::post_json(
+        &app,
+        "/classify",
+        serde_json::json!({"bbox": [8.3995, 49.0520, 8.4030]}),
+    )
+    .await;
+    assert_eq!(bad.status, StatusCode::BAD_REQUEST, "{}", bad.text());
 
     // Too small an area: said at once, nothing changes.
     let small = common::post_json(
@@ -205,7 +237,9 @@ async fn adapting_on_the_tagged_roofs_of_an_area_classifies_its_untagged_roofs_b
     let head_id = status["head_id"].as_str().unwrap();
     assert!(status["report"]["accuracy"].as_f64().unwrap() > 0.0);
 
-    let (adapted_right, adapted_total) = classify_east(&app, &shapes).await;
+    // The box as a GeoJSON-style array this time.
+    let east: Vec<f64> = EAST.split(',').map(|v| v.parse().unwrap()).collect();
+    let (adapted_right, adapted_total) = classify_east(&app, &shapes, east.into()).await;
     eprintln!(
         "east: shipped head {shipped_right}/{shipped_total} right, adapted head \
          {adapted_right}/{adapted_total}"
@@ -218,6 +252,25 @@ async fn adapting_on_the_tagged_roofs_of_an_area_classifies_its_untagged_roofs_b
     assert!(adapted_right > shipped_right);
     let active = state.roofs.active();
     assert!(active.model_id.ends_with(&format!("+head-{head_id}")));
+
+    // A FeatureCollection naming one east building by a point (its centre): the box around a
+    // point is widened to reach it (before: "minLon must be smaller than maxLon").
+    let (id, point) = truth_point(&osm_records(&osm), EAST);
+    let named = common::post_json(
+        &app,
+        "/classify",
+        serde_json::json!({"type": "FeatureCollection", "features": [{"type": "Feature",
+            "geometry": {"type": "Point", "coordinates": point},
+            "properties": {"osm_id": id}}]}),
+    )
+    .await;
+    assert_eq!(named.status, StatusCode::ACCEPTED, "{}", named.text());
+    let counts = &named.json()["counts"];
+    assert_eq!(
+        counts["queued"].as_u64().unwrap() + counts["already"].as_u64().unwrap(),
+        1,
+        "{counts}"
+    );
 
     let after = common::get(&app, &tile_uri).await;
     assert_eq!(after.status, StatusCode::OK);

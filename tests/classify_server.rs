@@ -365,6 +365,25 @@ async fn classification_is_unavailable_without_classifier_or_imagery() {
             .unwrap()
             .contains("--roof-classifier")
     );
+    // So does adapting.
+    let answer =
+        common::post_json(&app, "/classify/adapt", serde_json::json!({"bbox": AREA})).await;
+    assert_eq!(answer.status, StatusCode::SERVICE_UNAVAILABLE);
+    // A body over the limit is 413, as documented, with a JSON body (was 400): a million ids.
+    let ids: Vec<String> = (0..1_000_000).map(|i| format!("way/{i}")).collect();
+    let answer = common::post_json(
+        &app,
+        "/classify",
+        serde_json::json!({"bbox": AREA, "osm_ids": ids}),
+    )
+    .await;
+    assert_eq!(
+        answer.status,
+        StatusCode::PAYLOAD_TOO_LARGE,
+        "{}",
+        answer.text()
+    );
+    assert_eq!(answer.json()["error"], "body_too_large");
     // Classified tiles still serve: every untagged building is pending.
     let t = tile_of(8.3995, 49.055, 16);
     let tile = common::get(&app, &tile_uri(t, "classified")).await;

@@ -94,6 +94,16 @@ async fn scene_is_the_same_bytes_as_scene_glb_and_negotiates_json() {
     )
     .await;
     assert_eq!(ctype, "model/gltf-binary");
+    // Quality values decide, whatever the order (before, naming glTF at all gave the mesh).
+    let (_, ctype, _) = get_accepting(
+        &app,
+        &format!("/scene?{BOX}"),
+        "model/gltf-binary;q=0.5, application/json",
+    )
+    .await;
+    assert_eq!(ctype, "application/json");
+    let (_, ctype, _) = get_accepting(&app, &format!("/scene?{BOX}"), "*/*").await;
+    assert_eq!(ctype, "model/gltf-binary");
     let (_, ctype, _) = get_accepting(
         &app,
         &format!("/scene?{BOX}&format=glb"),
@@ -101,6 +111,9 @@ async fn scene_is_the_same_bytes_as_scene_glb_and_negotiates_json() {
     )
     .await;
     assert_eq!(ctype, "model/gltf-binary");
+    // Both variants say they vary with Accept, so caches keep them apart.
+    assert_eq!(json.header("vary"), "accept");
+    assert_eq!(scene.header("vary"), "accept");
 
     let bad = get(&app, &format!("/scene?{BOX}&format=xml")).await;
     assert_eq!(bad.status, StatusCode::BAD_REQUEST);

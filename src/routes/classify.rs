@@ -25,17 +25,41 @@ use utoipa::{IntoParams, ToSchema};
 pub const MAX_JOBS_PER_BATCH: usize = 20_000;
 /// Most features one predictions answer holds.
 pub const MAX_PREDICTIONS: u32 = 10_000;
+/// Half the side (degrees, about 55 m) of the box searched around features that span no area,
+/// such as points naming buildings.
+pub const POINT_MARGIN_DEG: f64 = 0.0005;
 /// Footprints smaller than this (m²) are skipped as `too_small`: sheds and kiosks span a few
 /// pixels of imagery.
 pub const MIN_FOOTPRINT_M2: f64 = 12.0;
+
+/// A box as text, `minLon,minLat,maxLon,maxLat`, or as the GeoJSON array
+/// `[minLon, minLat, maxLon, maxLat]`.
+#[derive(Debug, Clone, Deserialize, ToSchema)]
+#[serde(untagged)]
+pub enum BboxValue {
+    #[schema(example = "8.400,49.010,8.409,49.017")]
+    Text(String),
+    #[schema(example = json!([8.400, 49.010, 8.409, 49.017]))]
+    Array([f64; 4]),
+}
+
+impl BboxValue {
+    /// The box as the text `parse_bbox` reads (an array's numbers written as they are).
+    pub fn text(&self) -> String {
+        match self {
+            Self::Text(t) => t.clone(),
+            Self::Array([w, s, e, n]) => format!("{w},{s},{e},{n}"),
+        }
+    }
+}
 
 /// What to classify.
 #[derive(Debug, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ClassifyRequest {
-    /// The area as `minLon,minLat,maxLon,maxLat`: buildings whose footprint's centre lies in it.
-    #[schema(example = "8.400,49.010,8.409,49.017")]
-    pub bbox: String,
+    /// The area as `"minLon,minLat,maxLon,maxLat"` or `[minLon, minLat, maxLon, maxLat]`:
+    /// buildings whose footprint's centre lies in it.
+    pub bbox: BboxValue,
     /// Only these buildings of the area (`way/123`, `relation/45`); all when absent.
     #[serde(default)]
     pub osm_ids: Option<Vec<String>>,
@@ -55,7 +79,8 @@ pub enum ClassifyBody {
 
 /// A GeoJSON FeatureCollection whose features name buildings by `properties.osm_id` (`way/123`,
 /// `relation/45`; `@id` and `id` are read too), such as `GET /classify/predictions` answers or
-/// an export from another tool. The area searched is the extent of the features' geometry.
+/// an export from another tool. The area searched is the extent of the features' geometry,
+/// widened to about 110 m where it is thinner (features given as points).
 #[derive(Debug, Deserialize, ToSchema)]
 pub struct FeatureSelection {
     /// `FeatureCollection`.
@@ -101,6 +126,15 @@ impl FeatureSelection {
             });
             if points == 0 {
                 return Err(bad(format!("feature {i} ({id}) has no coordinates")));
+            }
+        }
+        // Features given as points (or a line along a meridian or a parallel) span no area: the
+        // box is widened to reach the buildings they name.
+        for k in 0..2 {
+            if hi[k] - lo[k] < 2.0 * POINT_MARGIN_DEG {
+                let mid = (lo[k] + hi[k]) / 2.0;
+                lo[k] = mid - POINT_MARGIN_DEG;
+                hi[k] = mid + POINT_MARGIN_DEG;
             }
         }
         Ok((format!("{},{},{},{}", lo[0], lo[1], hi[0], hi[1]), ids))
@@ -166,14 +200,29 @@ pub struct PredictionsQuery {
 }
 
 fn bad_json(e: JsonRejection) -> AppError {
-    AppError::bad_request(
-        "invalid_body",
-        format!(
-            "{}; send JSON like {{\"bbox\": \"8.400,49.010,8.409,49.017\"}}, or a GeoJSON \
-             FeatureCollection whose features have properties.osm_id",
-            e.body_text()
-        ),
+    json_rejection(
+        e,
+        "send JSON like {\"bbox\": \"8.400,49.010,8.409,49.017\"} (or [8.400, 49.010, 8.409, \
+         49.017]), or a GeoJSON FeatureCollection whose features have properties.osm_id",
     )
+}
+
+/// The answer to a JSON body that could not be read: 413 when it is larger than the route
+/// takes, else 400, saying what to send.
+pub(super) fn json_rejection(e: JsonRejection, what_to_send: &str) -> AppError {
+    if e.status() == StatusCode::PAYLOAD_TOO_LARGE {
+        return AppError::Document {
+            status: StatusCode::PAYLOAD_TOO_LARGE,
+            code: "body_too_large",
+            detail: format!(
+                "the body is larger than this route takes ({}); {what_to_send}",
+                e.body_text()
+            ),
+            feature: None,
+            field: None,
+        };
+    }
+    AppError::bad_request("invalid_body", format!("{}; {what_to_send}", e.body_text()))
 }
 
 fn batch_id(path: Result<Path<String>, PathRejection>) -> Result<i64, AppError> {
@@ -231,7 +280,7 @@ pub async fn post_classify(
         Json(ClassifyBody::Features(selection)) => {
             let (bbox, ids) = selection.area_and_ids()?;
             ClassifyRequest {
-                bbox,
+                bbox: BboxValue::Text(bbox),
                 osm_ids: Some(ids),
                 include_tagged: selection.include_tagged,
             }
@@ -241,7 +290,7 @@ pub async fn post_classify(
     if let Some(why) = roofs.why_not_running() {
         return Err(classification_unavailable(why));
     }
-    let bbox = parse_bbox(Some(&request.bbox), &state.limits)?;
+    let bbox = parse_bbox(Some(&request.bbox.text()), &state.limits)?;
     let buildings = state.source.buildings(&bbox).await?;
     let selection = if request.include_tagged {
         Selection::All

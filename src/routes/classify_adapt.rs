@@ -4,7 +4,7 @@
 //! /classify/adapt/{id}` reports its progress and, once fitted, its cross-validated report. The
 //! head is then in use for this imagery: `POST /classify` queues new predictions made with it.
 
-use super::classify::{centre_of, classification_unavailable};
+use super::classify::{BboxValue, centre_of, classification_unavailable, json_rejection};
 use super::params::parse_bbox;
 use crate::error::{AppError, ErrorBody};
 use crate::jobs::adapt::{
@@ -24,10 +24,10 @@ use utoipa::ToSchema;
 #[derive(Debug, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct AdaptRequest {
-    /// The area as `minLon,minLat,maxLon,maxLat`: its buildings whose footprint's centre lies in
-    /// it and whose `roof:shape` is flat, gabled, hipped or pyramidal are the examples.
-    #[schema(example = "8.396,49.052,8.403,49.058")]
-    pub bbox: String,
+    /// The area as `"minLon,minLat,maxLon,maxLat"` or `[minLon, minLat, maxLon, maxLat]`: its
+    /// buildings whose footprint's centre lies in it and whose `roof:shape` is flat, gabled,
+    /// hipped or pyramidal are the examples.
+    pub bbox: BboxValue,
 }
 
 /// An adaptation as started.
@@ -79,12 +79,9 @@ pub async fn post_adapt(
     body: Result<Json<AdaptRequest>, JsonRejection>,
 ) -> Result<Response, AppError> {
     let Json(request) = body.map_err(|e| {
-        AppError::bad_request(
-            "invalid_body",
-            format!(
-                "{}; send JSON like {{\"bbox\": \"8.396,49.052,8.403,49.058\"}}",
-                e.body_text()
-            ),
+        json_rejection(
+            e,
+            "send JSON like {\"bbox\": \"8.396,49.052,8.403,49.058\"}",
         )
     })?;
     let roofs = state.roofs.clone();
@@ -97,7 +94,7 @@ pub async fn post_adapt(
         ));
     };
     let model_id = crate::classifier::RoofClassifier::model_id(base.as_ref()).to_owned();
-    let bbox = parse_bbox(Some(&request.bbox), &state.limits)?;
+    let bbox = parse_bbox(Some(&request.bbox.text()), &state.limits)?;
     if let Some(running) = roofs.adaptations.running(&roofs.imagery_id).await? {
         return Err(AppError::Document {
             status: StatusCode::CONFLICT,

@@ -3,6 +3,7 @@
 //! is registered through utoipa-axum's `OpenApiRouter` with `routes!`, so a route cannot exist
 //! without its OpenAPI description.
 
+mod accept;
 mod classify;
 mod classify_adapt;
 mod conditional;

@@ -43,8 +43,8 @@ pub struct SceneQuery {
         example = "8.400,49.010,8.409,49.017"
     )]
     pub bbox: Option<String>,
-    /// `glb` (the default) or `json`. Without it, an `Accept` header that names
-    /// `application/json` and not `model/gltf-binary` chooses `json`.
+    /// `glb` (the default) or `json`. Without it, the `Accept` header chooses: `json` when it
+    /// gives `application/json` a higher quality than `model/gltf-binary`.
     #[param(inline)]
     pub format: Option<SceneFormat>,
     /// Where roof shapes come from: `osm` (the default) or `classified`.
@@ -84,20 +84,20 @@ pub async fn scene(
     let generated = generate_box(&state, query.bbox.as_deref(), query.roofs, encoding).await?;
     Ok(match format {
         SceneFormat::Glb => scene_response(&request_headers, generated, SCENE_CACHE_CONTROL),
-        SceneFormat::Json => Json(SceneStats::of(&generated.0, generated.1)).into_response(),
+        SceneFormat::Json => {
+            let mut response = Json(SceneStats::of(&generated.0, generated.1)).into_response();
+            // The same URL answers GLB or JSON by the Accept header: caches must key on it.
+            response
+                .headers_mut()
+                .insert(header::VARY, axum::http::HeaderValue::from_static("accept"));
+            response
+        }
     })
 }
 
-/// JSON when the client accepts JSON and does not name binary glTF.
+/// JSON when the client prefers JSON to binary glTF by the `Accept` header's quality values.
 fn negotiate(request: &HeaderMap) -> SceneFormat {
-    let accept = request
-        .get_all(header::ACCEPT)
-        .iter()
-        .filter_map(|v| v.to_str().ok())
-        .collect::<Vec<_>>()
-        .join(",")
-        .to_ascii_lowercase();
-    if accept.contains("application/json") && !accept.contains("model/gltf-binary") {
+    if super::accept::prefers(request, "application/json", super::headers::GLB) {
         SceneFormat::Json
     } else {
         SceneFormat::Glb
