@@ -409,6 +409,13 @@ pub struct ServeArgs {
     #[arg(long, env = "CITYMESH_OVERPASS_URL", value_delimiter = ',')]
     pub overpass_url: Option<Vec<String>>,
 
+    /// Origins (e.g. `https://app.example.org`; comma-separated in the variable) whose web pages
+    /// may queue, cancel and adapt classification (`POST` and `DELETE` under `/classify`).
+    /// Every origin may read; by default only the server's own pages may change state. Clients
+    /// that send no `Origin` header (curl, scripts) are not affected.
+    #[arg(long, env = "CITYMESH_CORS_ORIGIN", value_delimiter = ',')]
+    pub cors_origin: Vec<String>,
+
     /// Largest GeoJSON document `POST /scene.glb` accepts, in megabytes.
     #[arg(long, env = "CITYMESH_MAX_UPLOAD_MB", default_value_t = 10)]
     pub max_upload_mb: u64,

@@ -66,4 +66,6 @@ pub struct ServerState {
     pub classifier: Option<Arc<dyn crate::classifier::RoofClassifier>>,
     /// Roof jobs, their workers, and the predictions `roofs=classified` uses.
     pub roofs: Arc<crate::jobs::RoofJobs>,
+    /// Origins whose pages may change state (`--cors-origin`), besides the server's own.
+    pub cors_origins: Arc<Vec<String>>,
 }

@@ -500,3 +500,97 @@ async fn a_server_killed_mid_run_finishes_every_job_exactly_once_after_a_restart
     // ran twice.
     assert!(attempts >= queued && attempts <= queued + 16, "{attempts}");
 }
+
+/// A request with an `Origin` header (and optionally a preflight's requested method).
+async fn from_origin(
+    app: &axum::Router,
+    method: &str,
+    uri: &str,
+    origin: Option<&str>,
+    preflight_of: Option<&str>,
+) -> StatusCode {
+    let mut request = Request::builder()
+        .method(method)
+        .uri(uri)
+        .header("host", "citymesh.local:8080")
+        .header("content-type", "application/json");
+    if let Some(o) = origin {
+        request = request.header("origin", o);
+    }
+    if let Some(m) = preflight_of {
+        request = request.header("access-control-request-method", m);
+    }
+    let body = if method == "POST" {
+        Body::from(serde_json::json!({ "bbox": AREA }).to_string())
+    } else {
+        Body::empty()
+    };
+    common::send(app, request.body(body).unwrap()).await.status
+}
+
+#[tokio::test]
+async fn only_allowed_origins_may_change_state_from_a_browser_but_every_origin_may_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let (osm, _) = stripped_kirchfeld(dir.path());
+    let app = common::app_with(
+        &common::dem_dir(),
+        &dir.path().join("c.sqlite"),
+        &[
+            "--osm",
+            osm.to_str().unwrap(),
+            "--cors-origin",
+            "https://app.example",
+        ],
+    )
+    .await;
+    let evil = Some("https://evil.example");
+    // Another site's page may not queue, cancel or adapt (no classifier here: a request let
+    // through gets 503, one refused 403 before anything runs).
+    let forbidden = StatusCode::FORBIDDEN;
+    let through = StatusCode::SERVICE_UNAVAILABLE;
+    assert_eq!(
+        from_origin(&app, "POST", "/classify", evil, None).await,
+        forbidden
+    );
+    assert_eq!(
+        from_origin(&app, "POST", "/classify/adapt", evil, None).await,
+        forbidden
+    );
+    assert_eq!(
+        from_origin(&app, "DELETE", "/classify/1", evil, None).await,
+        forbidden
+    );
+    assert_eq!(
+        from_origin(&app, "OPTIONS", "/classify/1", evil, Some("DELETE")).await,
+        forbidden
+    );
+    // The listed origin, the server's own pages and clients without Origin go through.
+    let listed = Some("https://app.example");
+    assert_eq!(
+        from_origin(&app, "POST", "/classify", listed, None).await,
+        through
+    );
+    let own = Some("http://citymesh.local:8080");
+    assert_eq!(
+        from_origin(&app, "POST", "/classify", own, None).await,
+        through
+    );
+    assert_eq!(
+        from_origin(&app, "POST", "/classify", None, None).await,
+        through
+    );
+    assert_eq!(
+        from_origin(&app, "OPTIONS", "/classify/1", listed, Some("DELETE")).await,
+        StatusCode::OK
+    );
+    // Reading stays open to every origin.
+    let predictions = format!("/classify/predictions?bbox={AREA}");
+    assert_eq!(
+        from_origin(&app, "GET", &predictions, evil, None).await,
+        StatusCode::OK
+    );
+    assert_eq!(
+        from_origin(&app, "OPTIONS", "/classify/predictions", evil, Some("GET")).await,
+        StatusCode::OK
+    );
+}

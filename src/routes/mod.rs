@@ -7,6 +7,7 @@ mod accept;
 mod classify;
 mod classify_adapt;
 mod conditional;
+mod cross_origin;
 mod error_bodies;
 mod headers;
 mod health;
@@ -127,7 +128,7 @@ pub fn openapi_json() -> String {
 pub fn app(state: AppState) -> Router {
     let assets = state.assets_dir.clone();
     // Browsers on other origins (CesiumJS and three.js apps) may fetch everything and read the
-    // figures and validators.
+    // figures and validators; changing state is for the origins `cross_origin::guard` allows.
     let cors = CorsLayer::new()
         .allow_origin(Any)
         .allow_methods([
@@ -167,6 +168,11 @@ pub fn app(state: AppState) -> Router {
         ))
         .layer(compression)
         .layer(cors)
+        // Outside the CORS layer, so a refused preflight is refused too.
+        .layer(axum::middleware::from_fn_with_state(
+            state.clone(),
+            cross_origin::guard,
+        ))
         .layer(TraceLayer::new_for_http())
         .with_state(state)
 }

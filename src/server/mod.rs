@@ -199,6 +199,7 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
     Ok(AppState::new(ServerState {
         classifier,
         roofs,
+        cors_origins: Arc::new(args.cors_origin.clone()),
         dem: Arc::new(dem),
         source,
         tiles,
