@@ -594,3 +594,79 @@ async fn only_allowed_origins_may_change_state_from_a_browser_but_every_origin_m
         StatusCode::OK
     );
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_job_two_batches_share_survives_the_deletion_of_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let (osm, _) = stripped_kirchfeld(dir.path());
+    let imagery = common::imagery::imagery_server().await;
+    let args = ServeArgs::parse_from([
+        "serve",
+        "--dem-dir",
+        common::dem_dir().to_str().unwrap(),
+        "--cache-db",
+        dir.path().join("c.sqlite").to_str().unwrap(),
+        "--osm",
+        osm.to_str().unwrap(),
+        "--roof-classifier",
+        "--imagery-url",
+        &format!("{imagery}/grey/{{z}}/{{x}}/{{y}}"),
+    ]);
+    let state = citymesh::server::build_state(&args).await.unwrap();
+    let app = citymesh::app(state.clone());
+    // No worker yet: both batches stay queued. B asks for the same buildings as A.
+    let small = "8.3990,49.0540,8.4000,49.0550";
+    let a = common::post_json(&app, "/classify", serde_json::json!({ "bbox": small })).await;
+    assert_eq!(a.status, StatusCode::ACCEPTED, "{}", a.text());
+    let a = a.json();
+    let queued = a["counts"]["queued"].as_u64().unwrap();
+    assert!(queued > 0);
+    let b = common::post_json(&app, "/classify", serde_json::json!({ "bbox": small })).await;
+    let b = b.json();
+    assert_eq!(b["counts"]["already"].as_u64().unwrap(), queued);
+    let b_id = b["id"].as_i64().unwrap();
+    // B's progress counts the jobs A queued.
+    let progress = common::get(&app, &format!("/classify/{b_id}")).await.json();
+    assert_eq!(
+        progress["jobs"]["queued"].as_u64().unwrap(),
+        queued,
+        "{progress}"
+    );
+    // Deleting A cancels nothing B still wants (before: all of them, and B "finished").
+    let request = Request::delete(format!("/classify/{}", a["id"]))
+        .body(Body::empty())
+        .unwrap();
+    let deleted = common::send(&app, request).await;
+    assert_eq!(deleted.status, StatusCode::OK, "{}", deleted.text());
+    assert_eq!(deleted.json()["cancelled"], 0);
+    let progress = common::get(&app, &format!("/classify/{b_id}")).await.json();
+    assert_eq!(
+        progress["jobs"]["queued"].as_u64().unwrap(),
+        queued,
+        "{progress}"
+    );
+    assert_eq!(progress["finished"], false);
+    // A batch no other shares: deleting it cancels all its queued jobs, as before.
+    let c = common::post_json(
+        &app,
+        "/classify",
+        serde_json::json!({ "bbox": "8.3960,49.0520,8.3970,49.0530" }),
+    )
+    .await
+    .json();
+    let c_queued = c["counts"]["queued"].as_u64().unwrap();
+    assert!(c_queued > 0);
+    let request = Request::delete(format!("/classify/{}", c["id"]))
+        .body(Body::empty())
+        .unwrap();
+    assert_eq!(
+        common::send(&app, request).await.json()["cancelled"],
+        c_queued
+    );
+    // A worker then does B's jobs.
+    state.roofs.spawn_workers(1, WorkerConfig::default());
+    let done = wait_finished(&app, b_id).await;
+    let ended = done["jobs"]["done"].as_u64().unwrap() + done["jobs"]["failed"].as_u64().unwrap();
+    assert_eq!(ended, queued, "{done}");
+    assert_eq!(done["jobs"]["cancelled"], 0);
+}

@@ -151,7 +151,8 @@ pub trait RoofJobQueue: Send + Sync {
         batch: i64,
     ) -> impl Future<Output = Result<Option<BatchProgress>, JobError>> + Send;
 
-    /// Cancels the batch's queued jobs; `None` if there is no such batch.
+    /// Cancels the batch's queued jobs that no other live batch asked for; `None` if there is
+    /// no such batch.
     fn cancel(&self, batch: i64) -> impl Future<Output = Result<Option<u64>, JobError>> + Send;
 
     /// Every prediction made from `imagery_id` by `model_id`.

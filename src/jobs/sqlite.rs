@@ -109,6 +109,20 @@ impl RoofJobQueue for SqliteJobQueue {
             } else {
                 counts.already += 1;
             }
+            // The job is this batch's too, whichever batch queued it: its progress counts it
+            // and deleting another batch leaves it queued.
+            sqlx::query(
+                "INSERT OR IGNORE INTO roof_batch_jobs (batch_id, job_id) SELECT ?, id \
+                 FROM roof_jobs WHERE osm_id = ? AND footprint_hash = ? AND imagery_id = ? \
+                 AND model_id = ?",
+            )
+            .bind(batch)
+            .bind(&job.osm_id)
+            .bind(&hash)
+            .bind(imagery_id)
+            .bind(model_id)
+            .execute(&mut *tx)
+            .await?;
         }
         sqlx::query("UPDATE roof_batches SET counts = ? WHERE id = ?")
             .bind(serde_json::to_string(&counts).unwrap_or_default())
@@ -246,11 +260,13 @@ impl RoofJobQueue for SqliteJobQueue {
         let counts: BatchCounts =
             serde_json::from_str(&row.get::<String, _>(3)).unwrap_or_default();
         let mut jobs = empty_states();
-        for r in
-            sqlx::query("SELECT state, COUNT(*) FROM roof_jobs WHERE batch_id = ? GROUP BY state")
-                .bind(batch)
-                .fetch_all(&self.pool)
-                .await?
+        for r in sqlx::query(
+            "SELECT j.state, COUNT(*) FROM roof_batch_jobs b JOIN roof_jobs j \
+                 ON j.id = b.job_id WHERE b.batch_id = ? GROUP BY j.state",
+        )
+        .bind(batch)
+        .fetch_all(&self.pool)
+        .await?
         {
             jobs.insert(r.get(0), u64::try_from(r.get::<i64, _>(1)).unwrap_or(0));
         }
@@ -277,11 +293,17 @@ impl RoofJobQueue for SqliteJobQueue {
         if found == 0 {
             return Ok(None);
         }
+        // Only the queued jobs no other live batch asked for: a job two clients want survives
+        // the deletion of one's batch.
         let n = sqlx::query(
-            "UPDATE roof_jobs SET state = 'cancelled', updated_at = ? \
-             WHERE batch_id = ? AND state = 'queued'",
+            "UPDATE roof_jobs SET state = 'cancelled', updated_at = ? WHERE state = 'queued' \
+             AND id IN (SELECT job_id FROM roof_batch_jobs WHERE batch_id = ?) \
+             AND NOT EXISTS (SELECT 1 FROM roof_batch_jobs o JOIN roof_batches b \
+             ON b.id = o.batch_id WHERE o.job_id = roof_jobs.id AND o.batch_id != ? \
+             AND b.cancelled = 0)",
         )
         .bind(now_ms())
+        .bind(batch)
         .bind(batch)
         .execute(&mut *tx)
         .await?
