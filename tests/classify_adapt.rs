@@ -145,13 +145,9 @@ async fn classify_east(
     (right, total)
 }
 
+/// The XYZ tile holding a point.
 fn tile_of(lon: f64, lat: f64, z: u8) -> TileCoord {
-    let n = f64::from(1u32 << z);
-    let x = ((lon + 180.0) / 360.0 * n) as u32;
-    let lat_r = lat.to_radians();
-    let y =
-        ((1.0 - (lat_r.tan() + 1.0 / lat_r.cos()).ln() / std::f64::consts::PI) / 2.0 * n) as u32;
-    TileCoord::new(u32::from(z), x, y).unwrap()
+    TileCoord::containing(z, lon, lat)
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

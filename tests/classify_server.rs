@@ -86,13 +86,9 @@ async fn wait_finished(app: &axum::Router, id: i64) -> serde_json::Value {
     }
 }
 
+/// The XYZ tile holding a point.
 fn tile_of(lon: f64, lat: f64, z: u8) -> TileCoord {
-    let n = f64::from(1u32 << z);
-    let x = ((lon + 180.0) / 360.0 * n) as u32;
-    let lat_r = lat.to_radians();
-    let y =
-        ((1.0 - (lat_r.tan() + 1.0 / lat_r.cos()).ln() / std::f64::consts::PI) / 2.0 * n) as u32;
-    TileCoord::new(u32::from(z), x, y).unwrap()
+    TileCoord::containing(z, lon, lat)
 }
 
 fn tile_uri(t: TileCoord, roofs: &str) -> String {
