@@ -4,10 +4,10 @@
 
 use super::head::{AdaptError, fit_head};
 use super::labelled::read_labels;
-use super::{MODEL_RULE, RoofClassifier as _, load_onnx};
+use super::{MODEL_RULE, RoofClassifier as _, load_from_args};
 use crate::cli::AdaptRoofsArgs;
 use crate::jobs::adapt::{
-    AdaptationStore, Progress, fit_on_imagery, new_adaptation_id, tagged_examples,
+    AdaptationStore, Progress, class_counts, fit_on_imagery, new_adaptation_id, tagged_examples,
 };
 use crate::jobs::ring_bounds;
 use citymesh_core::roof_image::RoofClass;
@@ -25,11 +25,7 @@ pub fn run_labels(args: &AdaptRoofsArgs) -> anyhow::Result<bool> {
         .into_iter()
         .filter(|r| args.split.is_none() || r.split == args.split)
         .collect();
-    let classifier = load_onnx(
-        args.classifier.onnxruntime_lib.as_deref(),
-        args.classifier.roof_model.as_deref(),
-        args.classifier.roof_passes,
-    )?;
+    let classifier = load_from_args(&args.classifier)?;
     let started = std::time::Instant::now();
     let mut crops = Vec::with_capacity(rows.len());
     let mut failed = 0usize;
@@ -42,7 +38,8 @@ pub fn run_labels(args: &AdaptRoofsArgs) -> anyhow::Result<bool> {
             }
         }
     }
-    let head = match fit_head(&classifier, &crops) {
+    let (crops, classes): (Vec<_>, Vec<_>) = crops.into_iter().unzip();
+    let head = match fit_head(&classifier, &crops, &classes) {
         Ok(h) => h,
         Err(e @ AdaptError::TooFew { .. }) => {
             eprintln!("error: {e}");
@@ -64,17 +61,12 @@ pub async fn run_osm(args: &AdaptRoofsArgs) -> anyhow::Result<bool> {
             ring_bounds(ring).is_some_and(|[w, s, e, n]| b.contains((w + e) / 2.0, (s + n) / 2.0))
         })
     });
-    let classifier = load_onnx(
-        args.classifier.onnxruntime_lib.as_deref(),
-        args.classifier.roof_model.as_deref(),
-        args.classifier.roof_passes,
-    )?;
+    let classifier = load_from_args(&args.classifier)?;
     let pool = crate::db::open(&args.cache_db).await?;
     let imagery = args.imagery.open(&pool, None).await?.ok_or_else(|| {
         anyhow::anyhow!("--imagery-url is required with --osm: the imagery to adapt to")
     })?;
-    let mut counts = [0usize; 3];
-    examples.iter().for_each(|e| counts[e.class.index()] += 1);
+    let counts = class_counts(&examples);
     let store = AdaptationStore::new(pool);
     let id = new_adaptation_id()?;
     let area = bbox.map_or_else(|| "files".to_owned(), |b| b.to_string());

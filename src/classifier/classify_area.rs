@@ -1,7 +1,7 @@
 //! `citymesh classify`: the roofs of OSM buildings from an imagery service, as the server's jobs
 //! run them (same queue, same database), in the foreground with a progress bar.
 
-use super::{Prediction, load_classifier};
+use super::{Prediction, RoofClassifier, load_from_args};
 use crate::cli::ClassifyArgs;
 use crate::jobs::worker::{WorkerConfig, run_round};
 use crate::jobs::{
@@ -14,6 +14,7 @@ use citymesh_core::osm::{BuildingRecord, read_buildings};
 use citymesh_core::roof_image::RoofClass;
 use serde_json::json;
 use std::collections::{BTreeMap, HashMap};
+use std::sync::Arc;
 
 /// The `--bbox` as given and every building of the `--osm` files.
 pub(super) fn read_area(
@@ -44,11 +45,7 @@ pub async fn run(args: &ClassifyArgs) -> anyhow::Result<String> {
                 .is_some_and(|n| b.contains(n.lon, n.lat))
         });
     }
-    let classifier = load_classifier(
-        args.classifier.onnxruntime_lib.as_deref(),
-        args.classifier.roof_model.as_deref(),
-        args.classifier.roof_passes,
-    )?;
+    let classifier: Arc<dyn RoofClassifier> = load_from_args(&args.classifier)?;
     let pool = crate::db::open(&args.cache_db).await?;
     let imagery = args.imagery.open(&pool, None).await?.ok_or_else(|| {
         anyhow::anyhow!("--imagery-url is required: the imagery to classify from")

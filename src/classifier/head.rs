@@ -139,20 +139,25 @@ impl RoofHead {
 /// hundred crops.
 pub fn fit_head(
     classifier: &OnnxClassifier,
-    crops: &[(Crop, RoofClass)],
+    crops: &[Crop],
+    classes: &[RoofClass],
 ) -> Result<RoofHead, AdaptError> {
     let mut have = [0usize; 3];
-    crops.iter().for_each(|(_, c)| have[c.index()] += 1);
+    classes.iter().for_each(|c| have[c.index()] += 1);
     if have.iter().any(|&n| n < MIN_PER_CLASS) {
         return Err(AdaptError::TooFew { have });
     }
-    let only_crops: Vec<Crop> = crops.iter().map(|(c, _)| c.clone()).collect();
-    let embedded: Vec<Embedded> = classifier.classify_embedded(&only_crops)?;
-    let examples: Vec<Example> = embedded
+    let embedded: Vec<Embedded> = classifier.classify_embedded(crops)?;
+    let shipped_right = embedded
         .iter()
-        .zip(crops)
-        .map(|(e, (_, class))| Example {
-            rows: e.embeddings.clone(),
+        .zip(classes)
+        .filter(|(e, c)| e.prediction.class() == **c)
+        .count();
+    let examples: Vec<Example> = embedded
+        .into_iter()
+        .zip(classes)
+        .map(|(e, class)| Example {
+            rows: e.embeddings,
             label: class.index(),
         })
         .collect();
@@ -160,11 +165,6 @@ pub fn fit_head(
     let cv: CrossValidation = cross_validate(&examples, 3, FOLDS, options)
         .ok_or_else(|| AdaptError::Fit("cross-validation failed".into()))?;
     let labels: Vec<usize> = examples.iter().map(|e| e.label).collect();
-    let shipped_right = embedded
-        .iter()
-        .zip(&labels)
-        .filter(|(e, l)| e.prediction.class().index() == **l)
-        .count();
     let threshold = choose_threshold(&cv.probabilities, &labels, TARGET_PRECISION);
     let all: Vec<&Example> = examples.iter().collect();
     let regression = fit_examples(&all, 3, options)
@@ -227,7 +227,7 @@ pub struct HeadedClassifier {
 }
 
 impl HeadedClassifier {
-    /// `None`-free: fails when the head was fitted for another model.
+    /// Fails when the head was fitted for another model.
     pub fn new(base: Arc<OnnxClassifier>, head: RoofHead) -> Result<Self, ClassifierError> {
         if head.model_id != base.model_id() {
             return Err(ClassifierError::Input(format!(
@@ -238,10 +238,6 @@ impl HeadedClassifier {
         }
         let id = format!("{}+head-{}", base.model_id(), head.id());
         Ok(Self { base, head, id })
-    }
-
-    pub fn head(&self) -> &RoofHead {
-        &self.head
     }
 }
 

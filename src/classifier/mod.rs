@@ -129,6 +129,18 @@ pub fn load_classifier_with_head(
     }
 }
 
+/// The ONNX classifier the command-line options name (`--onnxruntime-lib`, `--roof-model`,
+/// `--roof-passes`).
+pub fn load_from_args(
+    args: &crate::cli::ClassifierArgs,
+) -> Result<Arc<onnx::OnnxClassifier>, ClassifierError> {
+    load_onnx(
+        args.onnxruntime_lib.as_deref(),
+        args.roof_model.as_deref(),
+        args.roof_passes,
+    )
+}
+
 /// The ONNX classifier itself (for embeddings).
 pub fn load_onnx(
     library: Option<&Path>,

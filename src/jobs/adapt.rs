@@ -67,7 +67,7 @@ pub struct ClassCounts {
 }
 
 impl ClassCounts {
-    fn of(counts: [usize; 3]) -> Self {
+    pub fn of(counts: [usize; 3]) -> Self {
         Self {
             flat: counts[0] as u64,
             gabled: counts[1] as u64,
@@ -113,6 +113,13 @@ pub fn tagged_examples(
         out.push(AdaptExample { job, class });
     }
     out
+}
+
+/// How many examples each class has (flat, gabled, hipped).
+pub fn class_counts(examples: &[AdaptExample]) -> [usize; 3] {
+    let mut counts = [0usize; 3];
+    examples.iter().for_each(|e| counts[e.class.index()] += 1);
+    counts
 }
 
 /// The adaptations in the cache database.
@@ -273,14 +280,14 @@ impl AdaptationStore {
         }))
     }
 
-    /// The newest head fitted for this imagery and model, with its adaptation's id.
+    /// The newest head fitted for this imagery and model.
     pub async fn newest_head(
         &self,
         imagery_id: &str,
         model_id: &str,
-    ) -> Result<Option<(String, RoofHead)>, JobError> {
+    ) -> Result<Option<RoofHead>, JobError> {
         let row = sqlx::query(
-            "SELECT id, head FROM roof_adaptations WHERE imagery_id = ? AND model_id = ? AND \
+            "SELECT head FROM roof_adaptations WHERE imagery_id = ? AND model_id = ? AND \
              state = 'done' AND head IS NOT NULL ORDER BY updated_at DESC LIMIT 1",
         )
         .bind(imagery_id)
@@ -290,9 +297,9 @@ impl AdaptationStore {
         let Some(row) = row else {
             return Ok(None);
         };
-        let head: RoofHead = serde_json::from_str(&row.get::<String, _>(1))
+        let head: RoofHead = serde_json::from_str(&row.get::<String, _>(0))
             .map_err(|e| JobError::Corrupt(format!("stored head: {e}")))?;
-        Ok(Some((row.get(0), head)))
+        Ok(Some(head))
     }
 }
 
@@ -310,7 +317,7 @@ pub async fn run_adaptation(
         return;
     }
     if let Ok(head) = &outcome {
-        match jobs.use_head(head.clone(), &id).await {
+        match jobs.use_head(head.clone()).await {
             Ok(()) => tracing::info!(adaptation = %id, head = %head.id(),
                 accuracy = head.report.accuracy, "adapted roof head in use"),
             Err(e) => tracing::warn!(adaptation = %id, error = %e, "cannot use the adapted head"),
@@ -378,11 +385,15 @@ pub async fn fit_on_imagery(
 ) -> Result<RoofHead, AdaptFailure> {
     let failed = |e: &dyn std::fmt::Display| AdaptFailure::Failed(e.to_string());
     let mut tiles = TileMemo::new();
-    let mut crops: Vec<(Crop, RoofClass)> = Vec::with_capacity(examples.len());
+    let mut crops: Vec<Crop> = Vec::with_capacity(examples.len());
+    let mut classes: Vec<RoofClass> = Vec::with_capacity(examples.len());
     let mut crop_failed = 0usize;
     for (i, example) in examples.iter().enumerate() {
         match crop_footprint(&example.job.footprint, imagery, &mut tiles).await {
-            Ok(crop) => crops.push((crop, example.class)),
+            Ok(crop) => {
+                crops.push(crop);
+                classes.push(example.class);
+            }
             Err(_) => crop_failed += 1,
         }
         if (i + 1) % PROGRESS_EVERY == 0 {
@@ -401,7 +412,7 @@ pub async fn fit_on_imagery(
         .await
         .map_err(|e| failed(&e))?;
     let base = base.clone();
-    let fitted = tokio::task::spawn_blocking(move || fit_head(&base, &crops))
+    let fitted = tokio::task::spawn_blocking(move || fit_head(&base, &crops, &classes))
         .await
         .map_err(|e| failed(&e))?;
     match fitted {

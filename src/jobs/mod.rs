@@ -21,5 +21,5 @@ pub use queue::{
     footprint_hash, ring_bounds,
 };
 pub use select::{Selection, select_buildings};
-pub use service::{ActiveHead, ActiveModel, RoofJobs};
+pub use service::{ActiveModel, RoofJobs};
 pub use sqlite::SqliteJobQueue;

@@ -41,18 +41,6 @@ pub struct ActiveModel {
     pub index: Arc<PredictionIndex>,
     /// Least top probability that gives a roof its shape.
     pub threshold: f32,
-    /// The adapted head in use, if any.
-    pub head: Option<ActiveHead>,
-}
-
-/// An adapted head in use.
-#[derive(Debug, Clone, serde::Serialize, utoipa::ToSchema)]
-pub struct ActiveHead {
-    pub head_id: String,
-    /// The adaptation that fitted it.
-    pub adaptation: String,
-    /// Its cross-validated accuracy on the tagged buildings it was fitted on.
-    pub accuracy: f64,
 }
 
 impl ActiveModel {
@@ -95,18 +83,17 @@ impl RoofJobs {
                 classifier,
                 index,
                 threshold,
-                head: None,
             })),
             metrics,
         };
         // The newest head adapted to this imagery for this model is in use, as before a restart.
         if jobs.base.is_some()
-            && let Some((adaptation, head)) = jobs
+            && let Some(head) = jobs
                 .adaptations
                 .newest_head(&jobs.imagery_id, &base_model_id)
                 .await?
         {
-            jobs.use_head(head, &adaptation).await?;
+            jobs.use_head(head).await?;
         }
         jobs.refresh_state_metrics().await;
         Ok(jobs)
@@ -122,7 +109,7 @@ impl RoofJobs {
     /// Puts `head` (fitted for the loaded model) in use for this imagery: new predictions are made
     /// with it and recorded under its id, and tiles with `roofs=classified` use them; the
     /// predictions it made before (after a restart) are loaded.
-    pub async fn use_head(&self, head: RoofHead, adaptation: &str) -> Result<(), JobError> {
+    pub async fn use_head(&self, head: RoofHead) -> Result<(), JobError> {
         let Some(base) = self.base.clone() else {
             return Err(JobError::Corrupt("no classifier is loaded".into()));
         };
@@ -131,11 +118,6 @@ impl RoofJobs {
             .threshold
             .probability
             .max(self.active().threshold);
-        let head_info = ActiveHead {
-            head_id: head.id(),
-            adaptation: adaptation.to_owned(),
-            accuracy: head.report.accuracy,
-        };
         let headed = HeadedClassifier::new(base, head)
             .map_err(|e| JobError::Corrupt(format!("head: {e}")))?;
         let model_id = headed.model_id().to_owned();
@@ -146,7 +128,6 @@ impl RoofJobs {
             classifier: Some(Arc::new(headed)),
             index,
             threshold,
-            head: Some(head_info),
         });
         match self.active.write() {
             Ok(mut a) => *a = next,

@@ -8,7 +8,7 @@ use super::classify::{BboxValue, centre_of, classification_unavailable, json_rej
 use super::params::parse_bbox;
 use crate::error::{AppError, ErrorBody};
 use crate::jobs::adapt::{
-    AdaptationStatus, ClassCounts, new_adaptation_id, run_adaptation, tagged_examples,
+    AdaptationStatus, ClassCounts, class_counts, new_adaptation_id, run_adaptation, tagged_examples,
 };
 use crate::state::AppState;
 use axum::Json;
@@ -111,8 +111,7 @@ pub async fn post_adapt(
     let examples = tagged_examples(buildings.set.records(), |ring| {
         centre_of(ring).is_some_and(|c| bbox.contains(c[0], c[1]))
     });
-    let mut counts = [0usize; 3];
-    examples.iter().for_each(|e| counts[e.class.index()] += 1);
+    let counts = class_counts(&examples);
     let min = crate::classifier::head::MIN_PER_CLASS;
     if counts.iter().any(|&n| n < min) {
         let found: Vec<String> = RoofClass::ALL
@@ -135,11 +134,7 @@ pub async fn post_adapt(
     let created = AdaptationCreated {
         progress: format!("/classify/adapt/{id}"),
         id,
-        examples: ClassCounts {
-            flat: counts[0] as u64,
-            gabled: counts[1] as u64,
-            hipped: counts[2] as u64,
-        },
+        examples: ClassCounts::of(counts),
         imagery_id: roofs.imagery_id.clone(),
         model_id,
     };
