@@ -119,7 +119,7 @@ async fn classify_east(
     assert_eq!(created.status, StatusCode::ACCEPTED, "{}", created.text());
     let batch = created.json();
     let model_id = batch["model_id"].as_str().unwrap().to_owned();
-    let id = batch["id"].as_i64().unwrap();
+    let id = batch["id"].as_str().unwrap().to_owned();
     let deadline = std::time::Instant::now() + Duration::from_secs(600);
     loop {
         let progress = common::get(app, &format!("/classify/{id}")).await.json();

@@ -65,7 +65,7 @@ async fn classify(
     .unwrap()
     .is_some()
     {}
-    let progress = queue.progress(batch).await.unwrap().unwrap();
+    let progress = queue.progress(&batch).await.unwrap().unwrap();
     assert!(progress.finished);
     let tags: HashMap<String, Option<String>> = records
         .iter()

@@ -69,7 +69,7 @@ async fn server(db: &Path, osm: &Path, imagery_url: &str) -> (axum::Router, AppS
 }
 
 /// Polls a batch until no job is queued or running.
-async fn wait_finished(app: &axum::Router, id: i64) -> serde_json::Value {
+async fn wait_finished(app: &axum::Router, id: &str) -> serde_json::Value {
     let deadline = std::time::Instant::now() + Duration::from_secs(600);
     loop {
         let progress = common::get(app, &format!("/classify/{id}")).await;
@@ -138,7 +138,7 @@ async fn stripped_kirchfeld_classified_through_the_api_agrees_with_its_tags_and_
     let created = common::post_json(&app, "/classify", serde_json::json!({"bbox": AREA})).await;
     assert_eq!(created.status, StatusCode::ACCEPTED, "{}", created.json());
     let created = created.json();
-    let id = created["id"].as_i64().unwrap();
+    let id = created["id"].as_str().unwrap().to_owned();
     let queued = created["counts"]["queued"].as_u64().unwrap();
     assert!(queued > 100, "{created}");
     assert_eq!(created["imagery_id"], "ortho");
@@ -148,7 +148,7 @@ async fn stripped_kirchfeld_classified_through_the_api_agrees_with_its_tags_and_
     assert_eq!(again.json()["counts"]["queued"], 0);
     assert_eq!(again.json()["counts"]["already"].as_u64().unwrap(), queued);
 
-    let finished = wait_finished(&app, id).await;
+    let finished = wait_finished(&app, &id).await;
     assert_eq!(
         finished["jobs"]["done"].as_u64().unwrap(),
         queued,
@@ -316,7 +316,8 @@ async fn stripped_kirchfeld_classified_through_the_api_agrees_with_its_tags_and_
     for (uri, status) in [
         ("/classify/0", StatusCode::BAD_REQUEST),
         ("/classify/abc", StatusCode::BAD_REQUEST),
-        ("/classify/999999", StatusCode::NOT_FOUND),
+        ("/classify/999999", StatusCode::BAD_REQUEST),
+        ("/classify/00000000000000000000000000000001", StatusCode::NOT_FOUND),
         ("/classify/predictions", StatusCode::BAD_REQUEST),
     ] {
         assert_eq!(common::get(&app, uri).await.status, status, "{uri}");
@@ -440,12 +441,12 @@ async fn a_server_killed_mid_run_finishes_every_job_exactly_once_after_a_restart
         .await
         .unwrap();
     let created: serde_json::Value = serde_json::from_slice(&body).unwrap();
-    let id = created["id"].as_i64().unwrap();
+    let id = created["id"].as_str().unwrap().to_owned();
     let queued = created["counts"]["queued"].as_i64().unwrap();
     assert!(queued >= 1000, "{created}");
     // Let a part of the run finish, then SIGKILL in the middle of it.
     let progress = |url: String| {
-        let http = http.clone();
+        let (http, id) = (http.clone(), id.clone());
         async move {
             let body = http
                 .get(format!("{url}/classify/{id}"))
@@ -620,7 +621,7 @@ async fn a_job_two_batches_share_survives_the_deletion_of_one() {
     let b = common::post_json(&app, "/classify", serde_json::json!({ "bbox": small })).await;
     let b = b.json();
     assert_eq!(b["counts"]["already"].as_u64().unwrap(), queued);
-    let b_id = b["id"].as_i64().unwrap();
+    let b_id = b["id"].as_str().unwrap().to_owned();
     // B's progress counts the jobs A queued.
     let progress = common::get(&app, &format!("/classify/{b_id}")).await.json();
     assert_eq!(
@@ -629,7 +630,7 @@ async fn a_job_two_batches_share_survives_the_deletion_of_one() {
         "{progress}"
     );
     // Deleting A cancels nothing B still wants (before: all of them, and B "finished").
-    let request = Request::delete(format!("/classify/{}", a["id"]))
+    let request = Request::delete(format!("/classify/{}", a["id"].as_str().unwrap()))
         .body(Body::empty())
         .unwrap();
     let deleted = common::send(&app, request).await;
@@ -652,7 +653,7 @@ async fn a_job_two_batches_share_survives_the_deletion_of_one() {
     .json();
     let c_queued = c["counts"]["queued"].as_u64().unwrap();
     assert!(c_queued > 0);
-    let request = Request::delete(format!("/classify/{}", c["id"]))
+    let request = Request::delete(format!("/classify/{}", c["id"].as_str().unwrap()))
         .body(Body::empty())
         .unwrap();
     assert_eq!(
@@ -661,7 +662,7 @@ async fn a_job_two_batches_share_survives_the_deletion_of_one() {
     );
     // A worker then does B's jobs.
     state.roofs.spawn_workers(1, WorkerConfig::default());
-    let done = wait_finished(&app, b_id).await;
+    let done = wait_finished(&app, &b_id).await;
     let ended = done["jobs"]["done"].as_u64().unwrap() + done["jobs"]["failed"].as_u64().unwrap();
     assert_eq!(ended, queued, "{done}");
     assert_eq!(done["jobs"]["cancelled"], 0);

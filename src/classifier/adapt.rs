@@ -7,7 +7,7 @@ use super::labelled::read_labels;
 use super::{MODEL_RULE, RoofClassifier as _, load_from_args};
 use crate::cli::AdaptRoofsArgs;
 use crate::jobs::adapt::{
-    AdaptationStore, Progress, class_counts, fit_on_imagery, new_adaptation_id, tagged_examples,
+    AdaptationStore, Progress, class_counts, fit_on_imagery, tagged_examples,
 };
 use crate::jobs::ring_bounds;
 use citymesh_core::roof_image::RoofClass;
@@ -68,7 +68,7 @@ pub async fn run_osm(args: &AdaptRoofsArgs) -> anyhow::Result<bool> {
     })?;
     let counts = class_counts(&examples);
     let store = AdaptationStore::new(pool);
-    let id = new_adaptation_id()?;
+    let id = crate::jobs::random_token()?;
     let area = bbox.map_or_else(|| "files".to_owned(), |b| b.to_string());
     store
         .create(

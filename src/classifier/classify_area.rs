@@ -81,7 +81,7 @@ pub async fn run(args: &ClassifyArgs) -> anyhow::Result<String> {
     loop {
         let round = run_round(&queue, &imagery, &classifier, config, &|_, _, _| {}).await?;
         let progress = queue
-            .progress(batch)
+            .progress(&batch)
             .await?
             .ok_or_else(|| anyhow::anyhow!("batch {batch} vanished"))?;
         let ended = progress.jobs["done"] + progress.jobs["failed"] + progress.jobs["cancelled"];
@@ -93,7 +93,7 @@ pub async fn run(args: &ClassifyArgs) -> anyhow::Result<String> {
     bar.finish_and_clear();
     let seconds = started.elapsed().as_secs_f64();
     let progress = queue
-        .progress(batch)
+        .progress(&batch)
         .await?
         .ok_or_else(|| anyhow::anyhow!("batch {batch} vanished"))?;
 

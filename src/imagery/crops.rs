@@ -1,6 +1,6 @@
 //! The crop of one footprint from an imagery service: the zoom its crop needs, the tiles under it
-//! (each fetched once per round through the caller's `tiles` map), stitched and cut by the crop
-//! rule.
+//! (each fetched once per round through the caller's `tiles` map, all of a round's at once with
+//! [`prefetch_tiles`]), stitched and cut by the crop rule.
 
 use super::{Imagery, ImageryError};
 use crate::classifier::MODEL_RULE;
@@ -23,6 +23,44 @@ pub struct CropFailure {
     /// `too_small: ...`, `too_large: ...` or `no_imagery: ...`.
     pub reason: String,
     pub retry: bool,
+}
+
+/// Tiles fetched at once by [`prefetch_tiles`]; the imagery source's own cap
+/// (`--imagery-concurrency`) bounds what is in flight upstream.
+const PREFETCH_AT_ONCE: usize = 16;
+
+/// The tiles a footprint's crop needs, or `None` when it has no crop (the crop says why).
+fn tiles_needed(footprint: &[[f64; 2]], imagery: &Imagery) -> Option<Vec<TileCoord>> {
+    let spec = imagery.spec();
+    let crop = FootprintCrop::new(footprint, MODEL_RULE)?;
+    let range = crop.tiles(crop.zoom(spec.tile_size, spec.max_zoom))?;
+    (range.len() <= MAX_TILES_PER_BUILDING).then(|| range.tiles().collect())
+}
+
+/// Fetches every tile the footprints' crops need and `tiles` lacks, concurrently (each once),
+/// so a round on slow imagery takes about as long as its slowest tiles, not their sum.
+pub async fn prefetch_tiles(footprints: &[&[[f64; 2]]], imagery: &Imagery, tiles: &mut TileMemo) {
+    use futures_util::StreamExt;
+    let mut wanted: Vec<TileCoord> = footprints
+        .iter()
+        .filter_map(|f| tiles_needed(f, imagery))
+        .flatten()
+        .filter(|t| !tiles.contains_key(t))
+        .collect();
+    wanted.sort_unstable();
+    wanted.dedup();
+    let fetched: Vec<(TileCoord, Result<Arc<Image>, ImageryError>)> =
+        futures_util::stream::iter(wanted)
+            .map(|t| async move { (t, imagery.tile(t).await.map(Arc::new)) })
+            .buffer_unordered(PREFETCH_AT_ONCE)
+            .collect()
+            .await;
+    for (t, result) in fetched {
+        if let Err(e) = &result {
+            tracing::warn!(tile = ?t, error = %e, "imagery tile failed");
+        }
+        tiles.insert(t, result);
+    }
 }
 
 /// The crop of a footprint (outer ring, lon/lat).

@@ -13,7 +13,7 @@ mod mbtiles;
 mod source;
 
 pub use cache::ImageryCache;
-pub use crops::{CropFailure, MAX_TILES_PER_BUILDING, TileMemo, crop_footprint};
+pub use crops::{CropFailure, MAX_TILES_PER_BUILDING, TileMemo, crop_footprint, prefetch_tiles};
 pub use geotiff::{Crs, GeoTiff, MAX_CHUNKS_PER_TILE};
 pub use http::{HttpImagery, UrlKind, WmsCrs, quadkey};
 pub use source::Imagery;

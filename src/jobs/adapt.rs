@@ -128,13 +128,6 @@ pub struct AdaptationStore {
     pool: SqlitePool,
 }
 
-/// 128 random bits as hex.
-pub fn new_adaptation_id() -> Result<String, JobError> {
-    let mut bytes = [0u8; 16];
-    getrandom::fill(&mut bytes).map_err(|e| JobError::Corrupt(format!("no randomness: {e}")))?;
-    Ok(bytes.iter().map(|b| format!("{b:02x}")).collect())
-}
-
 impl AdaptationStore {
     pub fn new(pool: SqlitePool) -> Self {
         Self { pool }

@@ -13,6 +13,7 @@ mod queue;
 mod select;
 mod service;
 mod sqlite;
+mod token;
 pub mod worker;
 
 pub use index::{IndexedPrediction, PredictionIndex};
@@ -23,3 +24,4 @@ pub use queue::{
 pub use select::{Selection, select_buildings};
 pub use service::{ActiveModel, RoofJobs};
 pub use sqlite::SqliteJobQueue;
+pub use token::{is_token, random_token};

@@ -57,7 +57,8 @@ pub struct BatchCounts {
 /// Where a batch stands.
 #[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
 pub struct BatchProgress {
-    pub id: i64,
+    /// The batch's token (32 hex digits).
+    pub id: String,
     pub bbox: String,
     pub imagery_id: String,
     pub model_id: String,
@@ -79,8 +80,8 @@ pub struct ClaimedJob {
     pub model_id: String,
     pub footprint: Vec<[f64; 2]>,
     pub attempts: i64,
-    /// The claim's lease end, ms since the epoch: identifies the claim.
-    pub lease_until: i64,
+    /// The claim (random): every state change checks the job is still under it.
+    pub claim: i64,
 }
 
 /// A stored prediction.
@@ -106,7 +107,8 @@ pub enum JobError {
 
 /// The queue's contract.
 pub trait RoofJobQueue: Send + Sync {
-    /// Makes a batch and queues a job per building not yet queued or done for these inputs.
+    /// Makes a batch and queues a job per building not yet queued or done for these inputs;
+    /// answers the batch's token and counts.
     fn enqueue(
         &self,
         bbox: &str,
@@ -114,7 +116,7 @@ pub trait RoofJobQueue: Send + Sync {
         model_id: &str,
         jobs: &[NewJob],
         skipped: BTreeMap<String, u64>,
-    ) -> impl Future<Output = Result<(i64, BatchCounts), JobError>> + Send;
+    ) -> impl Future<Output = Result<(String, BatchCounts), JobError>> + Send;
 
     /// Claims up to `n` jobs (queued, or running with a lease run out) for `lease`.
     fn claim(
@@ -123,8 +125,13 @@ pub trait RoofJobQueue: Send + Sync {
         lease: Duration,
     ) -> impl Future<Output = Result<Vec<ClaimedJob>, JobError>> + Send;
 
+    /// Extends the lease of the claim's jobs still running under it to `lease` from now; answers
+    /// how many it holds.
+    fn extend(&self, claim: i64, lease: Duration)
+    -> impl Future<Output = Result<u64, JobError>> + Send;
+
     /// Stores the prediction (which took `work_ms`) and marks the job done, in one transaction, if the job is still
-    /// this claim's (running, under the same lease); `false` when its lease ran out and another
+    /// this claim's (running, under the same claim); `false` when its lease ran out and another
     /// claim took it, or it was cancelled: then nothing is stored, so a job is done exactly once.
     fn complete(
         &self,
@@ -137,23 +144,23 @@ pub trait RoofJobQueue: Send + Sync {
     fn states(&self) -> impl Future<Output = Result<BTreeMap<String, u64>, JobError>> + Send;
 
     /// Gives the job back for another attempt, or fails it for good after [`MAX_ATTEMPTS`] or when
-    /// `retry` is false.
+    /// `retry` is false; `false` (and nothing changed) when the job is no longer this claim's.
     fn fail(
         &self,
         job: &ClaimedJob,
         reason: &str,
         retry: bool,
-    ) -> impl Future<Output = Result<(), JobError>> + Send;
+    ) -> impl Future<Output = Result<bool, JobError>> + Send;
 
     /// The batch's progress, `None` if there is no such batch.
     fn progress(
         &self,
-        batch: i64,
+        batch: &str,
     ) -> impl Future<Output = Result<Option<BatchProgress>, JobError>> + Send;
 
     /// Cancels the batch's queued jobs that no other live batch asked for; `None` if there is
     /// no such batch.
-    fn cancel(&self, batch: i64) -> impl Future<Output = Result<Option<u64>, JobError>> + Send;
+    fn cancel(&self, batch: &str) -> impl Future<Output = Result<Option<u64>, JobError>> + Send;
 
     /// Every prediction made from `imagery_id` by `model_id`.
     fn predictions_of(

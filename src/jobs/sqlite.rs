@@ -4,11 +4,15 @@ use super::queue::{
     BatchCounts, BatchProgress, ClaimedJob, JobError, MAX_ATTEMPTS, NewJob, RoofJobQueue,
     StoredPrediction, footprint_hash, ring_bounds,
 };
+use super::token::random_token;
 use crate::classifier::Prediction;
 use citymesh_core::geo::GeoBbox;
 use sqlx::{Row, SqlitePool};
 use std::collections::BTreeMap;
 use std::time::Duration;
+
+/// Jobs upserted per transaction when a batch is queued.
+const ENQUEUE_CHUNK: usize = 256;
 
 /// The columns [`prediction_of_row`] reads.
 macro_rules! prediction_columns {
@@ -24,6 +28,18 @@ pub struct SqliteJobQueue {
 }
 
 /// Milliseconds since the Unix epoch.
+/// When a lease taken at `now` (ms) for `lease` ends.
+fn lease_end(now: i64, lease: Duration) -> i64 {
+    now.saturating_add(i64::try_from(lease.as_millis()).unwrap_or(i64::MAX))
+}
+
+/// A random claim number.
+fn random_claim() -> Result<i64, JobError> {
+    let mut bytes = [0u8; 8];
+    getrandom::fill(&mut bytes).map_err(|e| JobError::Corrupt(format!("no randomness: {e}")))?;
+    Ok(i64::from_le_bytes(bytes))
+}
+
 pub(super) fn now_ms() -> i64 {
     std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
@@ -65,84 +81,93 @@ impl RoofJobQueue for SqliteJobQueue {
         model_id: &str,
         jobs: &[NewJob],
         skipped: BTreeMap<String, u64>,
-    ) -> Result<(i64, BatchCounts), JobError> {
+    ) -> Result<(String, BatchCounts), JobError> {
         let now = now_ms();
-        let mut tx = self.pool.begin().await?;
+        let token = random_token()?;
         let batch: i64 = sqlx::query(
-            "INSERT INTO roof_batches (created_at, bbox, imagery_id, model_id, counts) \
-             VALUES (?, ?, ?, ?, '{}') RETURNING id",
+            "INSERT INTO roof_batches (created_at, bbox, imagery_id, model_id, counts, token) \
+             VALUES (?, ?, ?, ?, '{}', ?) RETURNING id",
         )
         .bind(now)
         .bind(bbox)
         .bind(imagery_id)
         .bind(model_id)
-        .fetch_one(&mut *tx)
+        .bind(&token)
+        .fetch_one(&self.pool)
         .await?
         .get(0);
         let mut counts = BatchCounts {
             skipped,
             ..BatchCounts::default()
         };
-        for job in jobs {
-            let hash = footprint_hash(&job.footprint);
-            // A job that failed for good or was cancelled is queued again by a new batch.
-            let inserted = sqlx::query(
-                "INSERT INTO roof_jobs (batch_id, osm_id, footprint_hash, imagery_id, model_id, \
-                 footprint, state, updated_at) VALUES (?, ?, ?, ?, ?, ?, 'queued', ?) \
-                 ON CONFLICT (osm_id, footprint_hash, imagery_id, model_id) DO UPDATE SET \
-                 batch_id = excluded.batch_id, state = 'queued', attempts = 0, error = NULL, \
-                 lease_until = NULL, updated_at = excluded.updated_at \
-                 WHERE roof_jobs.state IN ('failed', 'cancelled')",
-            )
-            .bind(batch)
-            .bind(&job.osm_id)
-            .bind(&hash)
-            .bind(imagery_id)
-            .bind(model_id)
-            .bind(ring_json(&job.footprint))
-            .bind(now)
-            .execute(&mut *tx)
-            .await?
-            .rows_affected();
-            if inserted == 1 {
-                counts.queued += 1;
-            } else {
-                counts.already += 1;
+        // In chunks, each its own short transaction: a district's thousands of upserts never
+        // hold the database's write lock long enough to starve other writers.
+        for chunk in jobs.chunks(ENQUEUE_CHUNK) {
+            let mut tx = self.pool.begin().await?;
+            for job in chunk {
+                let hash = footprint_hash(&job.footprint);
+                // A job that failed for good or was cancelled is queued again by a new batch.
+                let inserted = sqlx::query(
+                    "INSERT INTO roof_jobs (batch_id, osm_id, footprint_hash, imagery_id, model_id, \
+                     footprint, state, updated_at) VALUES (?, ?, ?, ?, ?, ?, 'queued', ?) \
+                     ON CONFLICT (osm_id, footprint_hash, imagery_id, model_id) DO UPDATE SET \
+                     batch_id = excluded.batch_id, state = 'queued', attempts = 0, error = NULL, \
+                     lease_until = NULL, updated_at = excluded.updated_at \
+                     WHERE roof_jobs.state IN ('failed', 'cancelled')",
+                )
+                .bind(batch)
+                .bind(&job.osm_id)
+                .bind(&hash)
+                .bind(imagery_id)
+                .bind(model_id)
+                .bind(ring_json(&job.footprint))
+                .bind(now)
+                .execute(&mut *tx)
+                .await?
+                .rows_affected();
+                if inserted == 1 {
+                    counts.queued += 1;
+                } else {
+                    counts.already += 1;
+                }
+                // The job is this batch's too, whichever batch queued it: its progress counts it
+                // and deleting another batch leaves it queued.
+                sqlx::query(
+                    "INSERT OR IGNORE INTO roof_batch_jobs (batch_id, job_id) SELECT ?, id \
+                     FROM roof_jobs WHERE osm_id = ? AND footprint_hash = ? AND imagery_id = ? \
+                     AND model_id = ?",
+                )
+                .bind(batch)
+                .bind(&job.osm_id)
+                .bind(&hash)
+                .bind(imagery_id)
+                .bind(model_id)
+                .execute(&mut *tx)
+                .await?;
             }
-            // The job is this batch's too, whichever batch queued it: its progress counts it
-            // and deleting another batch leaves it queued.
-            sqlx::query(
-                "INSERT OR IGNORE INTO roof_batch_jobs (batch_id, job_id) SELECT ?, id \
-                 FROM roof_jobs WHERE osm_id = ? AND footprint_hash = ? AND imagery_id = ? \
-                 AND model_id = ?",
-            )
-            .bind(batch)
-            .bind(&job.osm_id)
-            .bind(&hash)
-            .bind(imagery_id)
-            .bind(model_id)
-            .execute(&mut *tx)
-            .await?;
+            tx.commit().await?;
         }
         sqlx::query("UPDATE roof_batches SET counts = ? WHERE id = ?")
             .bind(serde_json::to_string(&counts).unwrap_or_default())
             .bind(batch)
-            .execute(&mut *tx)
+            .execute(&self.pool)
             .await?;
-        tx.commit().await?;
-        Ok((batch, counts))
+        Ok((token, counts))
     }
 
     async fn claim(&self, n: u32, lease: Duration) -> Result<Vec<ClaimedJob>, JobError> {
         let now = now_ms();
-        let until = now.saturating_add(i64::try_from(lease.as_millis()).unwrap_or(i64::MAX));
+        let until = lease_end(now, lease);
+        let claim = random_claim()?;
         let rows = sqlx::query(
-            "UPDATE roof_jobs SET state = 'running', lease_until = ?, attempts = attempts + 1, \
-             updated_at = ? WHERE id IN (SELECT id FROM roof_jobs WHERE state = 'queued' \
-             OR (state = 'running' AND lease_until < ?) ORDER BY id LIMIT ?) \
+            "UPDATE roof_jobs SET state = 'running', lease_until = ?, claim = ?, \
+             attempts = attempts + 1, updated_at = ? WHERE id IN (SELECT id FROM roof_jobs \
+             WHERE state = 'queued' OR (state = 'running' AND lease_until < ?) ORDER BY id \
+             LIMIT ?) \
              RETURNING id, osm_id, footprint_hash, imagery_id, model_id, footprint, attempts",
         )
         .bind(until)
+        .bind(claim)
         .bind(now)
         .bind(now)
         .bind(i64::from(n))
@@ -159,12 +184,26 @@ impl RoofJobQueue for SqliteJobQueue {
                     model_id: r.get(4),
                     footprint: parse_ring(&r.get::<String, _>(5))?,
                     attempts: r.get(6),
-                    lease_until: until,
+                    claim,
                 })
             })
             .collect::<Result<Vec<_>, JobError>>()?;
         jobs.sort_by_key(|j| j.id);
         Ok(jobs)
+    }
+
+    async fn extend(&self, claim: i64, lease: Duration) -> Result<u64, JobError> {
+        let now = now_ms();
+        Ok(sqlx::query(
+            "UPDATE roof_jobs SET lease_until = ?, updated_at = ? WHERE claim = ? \
+             AND state = 'running'",
+        )
+        .bind(lease_end(now, lease))
+        .bind(now)
+        .bind(claim)
+        .execute(&self.pool)
+        .await?
+        .rows_affected())
     }
 
     async fn complete(
@@ -180,11 +219,11 @@ impl RoofJobQueue for SqliteJobQueue {
         // Still this claim's job? (A claim whose lease ran out may have been taken over.)
         let ours = sqlx::query(
             "UPDATE roof_jobs SET state = 'done', lease_until = NULL, error = NULL, updated_at = ? \
-             WHERE id = ? AND state = 'running' AND lease_until = ?",
+             WHERE id = ? AND state = 'running' AND claim = ?",
         )
         .bind(now)
         .bind(job.id)
-        .bind(job.lease_until)
+        .bind(job.claim)
         .execute(&mut *tx)
         .await?
         .rows_affected();
@@ -228,30 +267,33 @@ impl RoofJobQueue for SqliteJobQueue {
         Ok(states)
     }
 
-    async fn fail(&self, job: &ClaimedJob, reason: &str, retry: bool) -> Result<(), JobError> {
+    async fn fail(&self, job: &ClaimedJob, reason: &str, retry: bool) -> Result<bool, JobError> {
         let state = if retry && job.attempts < MAX_ATTEMPTS {
             "queued"
         } else {
             "failed"
         };
-        sqlx::query(
+        let ours = sqlx::query(
             "UPDATE roof_jobs SET state = ?, lease_until = NULL, error = ?, updated_at = ? \
-             WHERE id = ? AND state = 'running'",
+             WHERE id = ? AND state = 'running' AND claim = ?",
         )
         .bind(state)
         .bind(reason)
         .bind(now_ms())
         .bind(job.id)
+        .bind(job.claim)
         .execute(&self.pool)
-        .await?;
-        Ok(())
+        .await?
+        .rows_affected();
+        Ok(ours == 1)
     }
 
-    async fn progress(&self, batch: i64) -> Result<Option<BatchProgress>, JobError> {
+    async fn progress(&self, token: &str) -> Result<Option<BatchProgress>, JobError> {
         let Some(row) = sqlx::query(
-            "SELECT bbox, imagery_id, model_id, counts, cancelled FROM roof_batches WHERE id = ?",
+            "SELECT bbox, imagery_id, model_id, counts, cancelled, id FROM roof_batches \
+             WHERE token = ?",
         )
-        .bind(batch)
+        .bind(token)
         .fetch_optional(&self.pool)
         .await?
         else {
@@ -259,6 +301,7 @@ impl RoofJobQueue for SqliteJobQueue {
         };
         let counts: BatchCounts =
             serde_json::from_str(&row.get::<String, _>(3)).unwrap_or_default();
+        let batch: i64 = row.get(5);
         let mut jobs = empty_states();
         for r in sqlx::query(
             "SELECT j.state, COUNT(*) FROM roof_batch_jobs b JOIN roof_jobs j \
@@ -272,7 +315,7 @@ impl RoofJobQueue for SqliteJobQueue {
         }
         let finished = jobs["queued"] == 0 && jobs["running"] == 0;
         Ok(Some(BatchProgress {
-            id: batch,
+            id: token.to_owned(),
             bbox: row.get(0),
             imagery_id: row.get(1),
             model_id: row.get(2),
@@ -283,16 +326,17 @@ impl RoofJobQueue for SqliteJobQueue {
         }))
     }
 
-    async fn cancel(&self, batch: i64) -> Result<Option<u64>, JobError> {
+    async fn cancel(&self, token: &str) -> Result<Option<u64>, JobError> {
         let mut tx = self.pool.begin().await?;
-        let found = sqlx::query("UPDATE roof_batches SET cancelled = 1 WHERE id = ?")
-            .bind(batch)
-            .execute(&mut *tx)
-            .await?
-            .rows_affected();
-        if found == 0 {
+        let Some(batch) =
+            sqlx::query("UPDATE roof_batches SET cancelled = 1 WHERE token = ? RETURNING id")
+                .bind(token)
+                .fetch_optional(&mut *tx)
+                .await?
+                .map(|r| r.get::<i64, _>(0))
+        else {
             return Ok(None);
-        }
+        };
         // Only the queued jobs no other live batch asked for: a job two clients want survives
         // the deletion of one's batch.
         let n = sqlx::query(
@@ -441,17 +485,34 @@ mod tests {
         for j in &taken {
             assert!(q.complete(j, p(), 1.0).await.unwrap());
         }
-        // The dead worker comes back and tries to complete: refused, nothing stored twice.
+        // The dead worker comes back and tries to complete or fail: refused, nothing stored twice
+        // and the new claim's job untouched.
         assert!(!q.complete(&dead[0], p(), 1.0).await.unwrap());
+        assert!(!q.fail(&dead[1], "stale", false).await.unwrap());
         assert!(!q.complete(&taken[0], p(), 1.0).await.unwrap());
         let all = q
             .predictions(&"8.3,48.9,8.5,49.1".parse().unwrap(), 100)
             .await
             .unwrap();
         assert_eq!(all.len(), 2);
-        let progress = q.progress(batch).await.unwrap().unwrap();
+        let progress = q.progress(&batch).await.unwrap().unwrap();
         assert_eq!(progress.jobs["done"], 2);
         assert!(progress.finished);
+    }
+
+    #[tokio::test]
+    async fn an_extended_lease_keeps_the_job_from_other_claims() {
+        let q = queue().await;
+        q.enqueue("b", "img", "m", &[job(1)], BTreeMap::new())
+            .await
+            .unwrap();
+        let held = q.claim(10, Duration::from_millis(1)).await.unwrap();
+        assert_eq!(q.extend(held[0].claim, Duration::from_secs(60)).await.unwrap(), 1);
+        tokio::time::sleep(Duration::from_millis(20)).await;
+        // The first lease would have run out; the extended one holds.
+        assert!(q.claim(10, Duration::from_secs(60)).await.unwrap().is_empty());
+        assert!(q.complete(&held[0], p(), 1.0).await.unwrap());
+        assert_eq!(q.extend(held[0].claim, Duration::from_secs(60)).await.unwrap(), 0);
     }
 
     #[tokio::test]
@@ -466,13 +527,13 @@ mod tests {
             assert_eq!(jobs[0].attempts, attempt);
             q.fail(&jobs[0], "no_imagery: busy", true).await.unwrap();
         }
-        let progress = q.progress(batch).await.unwrap().unwrap();
+        let progress = q.progress(&batch).await.unwrap().unwrap();
         assert_eq!((progress.jobs["failed"], progress.jobs["queued"]), (1, 1));
-        assert_eq!(q.cancel(batch).await.unwrap(), Some(1));
-        let progress = q.progress(batch).await.unwrap().unwrap();
+        assert_eq!(q.cancel(&batch).await.unwrap(), Some(1));
+        let progress = q.progress(&batch).await.unwrap().unwrap();
         assert_eq!(progress.jobs["cancelled"], 1);
         assert!(progress.finished && progress.cancelled);
-        assert_eq!(q.cancel(999).await.unwrap(), None);
-        assert!(q.progress(999).await.unwrap().is_none());
+        assert_eq!(q.cancel(&"0".repeat(32)).await.unwrap(), None);
+        assert!(q.progress(&"0".repeat(32)).await.unwrap().is_none());
     }
 }

@@ -1,10 +1,12 @@
-//! Running roof jobs: claim a few under a lease, fetch and stitch their imagery, crop by the crop
-//! rule, classify the crops in one batch, store each prediction. Failures of one building fail
-//! that job (with a reason; retried when the cause may pass), never the others.
+//! Running roof jobs: claim a few under a lease, fetch their imagery (all tiles of the round at
+//! once), crop by the crop rule, classify the crops in one batch, store each prediction. The
+//! lease is extended while the round works, so slow imagery never hands running jobs to another
+//! worker. Failures of one building fail that job (with a reason; retried when the cause may
+//! pass), never the others.
 
 use super::queue::{ClaimedJob, JobError, RoofJobQueue};
 use crate::classifier::{Prediction, RoofClassifier, classify_blocking};
-use crate::imagery::{Imagery, TileMemo, crop_footprint};
+use crate::imagery::{Imagery, TileMemo, crop_footprint, prefetch_tiles};
 use citymesh_core::roof_image::Crop;
 use std::sync::Arc;
 use std::time::Duration;
@@ -60,24 +62,54 @@ pub async fn run_round<Q: RoofJobQueue>(
     on_done: OnDone<'_>,
 ) -> Result<Option<RoundReport>, JobError> {
     let jobs = queue.claim(config.claim, config.lease).await?;
-    if jobs.is_empty() {
+    let Some(claim) = jobs.first().map(|j| j.claim) else {
         return Ok(None);
+    };
+    let work = work_round(queue, imagery, classifier, jobs, on_done);
+    tokio::pin!(work);
+    // Extend the lease a third of the way into it, again and again, until the round ends.
+    let every = (config.lease / 3).max(Duration::from_millis(10));
+    let mut ticks = tokio::time::interval_at(tokio::time::Instant::now() + every, every);
+    loop {
+        tokio::select! {
+            report = &mut work => return report.map(Some),
+            _ = ticks.tick() => {
+                if let Err(e) = queue.extend(claim, config.lease).await {
+                    tracing::warn!(error = %e, "cannot extend a roof job lease");
+                }
+            }
+        }
     }
+}
+
+/// Runs claimed jobs to their end.
+async fn work_round<Q: RoofJobQueue>(
+    queue: &Q,
+    imagery: &Imagery,
+    classifier: &Arc<dyn RoofClassifier>,
+    jobs: Vec<ClaimedJob>,
+    on_done: OnDone<'_>,
+) -> Result<RoundReport, JobError> {
     let round_started = std::time::Instant::now();
     let mut report = RoundReport::default();
     let mut tiles = TileMemo::new();
+    let footprints: Vec<&[[f64; 2]]> = jobs.iter().map(|j| j.footprint.as_slice()).collect();
+    prefetch_tiles(&footprints, imagery, &mut tiles).await;
     let mut ready: Vec<(ClaimedJob, Crop)> = Vec::new();
     for job in jobs {
         match crop_for(&job, imagery, classifier.model_id(), &mut tiles).await {
             Ok(crop) => ready.push((job, crop)),
             Err((reason, retry)) => {
-                queue.fail(&job, &reason, retry).await?;
-                report.failed += 1;
+                if queue.fail(&job, &reason, retry).await? {
+                    report.failed += 1;
+                } else {
+                    report.lost += 1;
+                }
             }
         }
     }
     if ready.is_empty() {
-        return Ok(Some(report));
+        return Ok(report);
     }
     let (jobs, crops): (Vec<ClaimedJob>, Vec<Crop>) = ready.into_iter().unzip();
     let started = std::time::Instant::now();
@@ -97,12 +129,15 @@ pub async fn run_round<Q: RoofJobQueue>(
         }
         Err(e) => {
             for job in &jobs {
-                queue.fail(job, &format!("classifier: {e}"), true).await?;
-                report.failed += 1;
+                if queue.fail(job, &format!("classifier: {e}"), true).await? {
+                    report.failed += 1;
+                } else {
+                    report.lost += 1;
+                }
             }
         }
     }
-    Ok(Some(report))
+    Ok(report)
 }
 
 /// The crop of one job, or why not and whether trying again may help.

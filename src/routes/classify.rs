@@ -165,7 +165,9 @@ fn visit_positions(v: &serde_json::Value, depth: u8, f: &mut dyn FnMut(f64, f64)
 /// A batch as queued.
 #[derive(Debug, Serialize, ToSchema)]
 pub struct BatchCreated {
-    pub id: i64,
+    /// The batch's token: 32 hex digits, unguessable; whoever holds it can follow or delete the
+    /// batch.
+    pub id: String,
     /// Where to follow it.
     pub progress: String,
     pub counts: BatchCounts,
@@ -186,7 +188,7 @@ pub struct BatchStatus {
 
 #[derive(Debug, Serialize, ToSchema)]
 pub struct BatchCancelled {
-    pub id: i64,
+    pub id: String,
     /// Queued jobs cancelled now (running ones finish).
     pub cancelled: u64,
 }
@@ -225,22 +227,21 @@ pub(super) fn json_rejection(e: JsonRejection, what_to_send: &str) -> AppError {
     AppError::bad_request("invalid_body", format!("{}; {what_to_send}", e.body_text()))
 }
 
-fn batch_id(path: Result<Path<String>, PathRejection>) -> Result<i64, AppError> {
+fn batch_id(path: Result<Path<String>, PathRejection>) -> Result<String, AppError> {
     let Path(text) = path.map_err(|e| AppError::bad_request("invalid_id", e.body_text()))?;
-    text.parse::<i64>()
-        .ok()
-        .filter(|id| *id > 0)
-        .ok_or_else(|| {
-            AppError::bad_request(
-                "invalid_id",
-                format!("'{text}' is not a batch id (a whole number > 0)"),
-            )
-        })
+    if crate::jobs::is_token(&text) {
+        Ok(text)
+    } else {
+        Err(AppError::bad_request(
+            "invalid_id",
+            "that is not a batch id: send the 32 hex digits POST /classify answered as `id`",
+        ))
+    }
 }
 
 /// A batch that exists and was not deleted (a deleted batch is gone for clients; its finished
 /// jobs keep their predictions).
-async fn live_batch(state: &AppState, id: i64) -> Result<BatchProgress, AppError> {
+async fn live_batch(state: &AppState, id: &str) -> Result<BatchProgress, AppError> {
     match state.roofs.queue.progress(id).await? {
         Some(p) if !p.cancelled => Ok(p),
         Some(_) => Err(AppError::not_found(
@@ -345,8 +346,8 @@ pub async fn post_classify(
         .await?;
     roofs.refresh_state_metrics().await;
     let created = BatchCreated {
-        id,
         progress: format!("/classify/{id}"),
+        id,
         counts,
         imagery_id: roofs.imagery_id.clone(),
         imagery_attribution: roofs.imagery_attribution.clone(),
@@ -357,10 +358,10 @@ pub async fn post_classify(
 
 /// A classification batch's progress.
 #[utoipa::path(get, path = "/classify/{id}", tag = "classification",
-    params(("id" = i64, Path, description = "The batch id `POST /classify` answered", minimum = 1)),
+    params(("id" = String, Path, description = "The batch id `POST /classify` answered (32 hex digits)", pattern = "^[0-9a-f]{32}$")),
     responses(
         (status = 200, description = "The batch's jobs by state", body = BatchStatus),
-        (status = 400, description = "The id is not a whole number > 0", body = ErrorBody),
+        (status = 400, description = "The id is not 32 hex digits", body = ErrorBody),
         (status = 404, description = "No such batch", body = ErrorBody),
         (status = 500, description = "An internal failure; the server log has the cause", body = ErrorBody),
     ))]
@@ -369,7 +370,7 @@ pub async fn get_batch(
     path: Result<Path<String>, PathRejection>,
 ) -> Result<Json<BatchStatus>, AppError> {
     let id = batch_id(path)?;
-    let progress = live_batch(&state, id).await?;
+    let progress = live_batch(&state, &id).await?;
     let total: u64 = progress.jobs.values().sum();
     let ended = progress.jobs["done"] + progress.jobs["failed"] + progress.jobs["cancelled"];
     Ok(Json(BatchStatus {
@@ -386,10 +387,10 @@ pub async fn get_batch(
 /// Delete a batch: its queued jobs are cancelled (running ones finish; done ones keep their
 /// predictions), and the batch is gone (`GET` answers 404).
 #[utoipa::path(delete, path = "/classify/{id}", tag = "classification",
-    params(("id" = i64, Path, description = "The batch id", minimum = 1)),
+    params(("id" = String, Path, description = "The batch id `POST /classify` answered (32 hex digits)", pattern = "^[0-9a-f]{32}$")),
     responses(
         (status = 200, description = "Cancelled", body = BatchCancelled),
-        (status = 400, description = "The id is not a whole number > 0", body = ErrorBody),
+        (status = 400, description = "The id is not 32 hex digits", body = ErrorBody),
         (status = 404, description = "No such batch", body = ErrorBody),
         (status = 500, description = "An internal failure; the server log has the cause", body = ErrorBody),
     ))]
@@ -398,11 +399,11 @@ pub async fn delete_batch(
     path: Result<Path<String>, PathRejection>,
 ) -> Result<Json<BatchCancelled>, AppError> {
     let id = batch_id(path)?;
-    live_batch(&state, id).await?;
+    live_batch(&state, &id).await?;
     let cancelled = state
         .roofs
         .queue
-        .cancel(id)
+        .cancel(&id)
         .await?
         .ok_or_else(|| AppError::not_found("no_such_batch", format!("no batch {id}")))?;
     state.roofs.refresh_state_metrics().await;

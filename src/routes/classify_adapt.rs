@@ -8,7 +8,7 @@ use super::classify::{BboxValue, centre_of, classification_unavailable, json_rej
 use super::params::parse_bbox;
 use crate::error::{AppError, ErrorBody};
 use crate::jobs::adapt::{
-    AdaptationStatus, ClassCounts, class_counts, new_adaptation_id, run_adaptation, tagged_examples,
+    AdaptationStatus, ClassCounts, class_counts, run_adaptation, tagged_examples,
 };
 use crate::state::AppState;
 use axum::Json;
@@ -124,7 +124,7 @@ pub async fn post_adapt(
             found.join(", ")
         )));
     }
-    let id = new_adaptation_id()?;
+    let id = crate::jobs::random_token()?;
     roofs
         .adaptations
         .create(&id, &bbox.to_string(), &roofs.imagery_id, &model_id, counts)
