@@ -475,9 +475,11 @@ pub struct ServeArgs {
     #[arg(long, env = "CITYMESH_OSM_TTL_HOURS", default_value_t = 168.0)]
     pub osm_ttl_hours: f64,
 
-    /// Memory for generated tiles, in megabytes.
-    #[arg(long, env = "CITYMESH_TILE_CACHE_MB", default_value_t = 256)]
-    pub tile_cache_mb: u64,
+    /// Memory for every cache, in megabytes: generated tiles and scenes 25 %, parsed DEM files
+    /// 25 %, parsed OSM data tiles 20 %, building sets 30 % (each evicts the least recently
+    /// used past its share). The process needs this plus its working memory per request.
+    #[arg(long, env = "CITYMESH_MEMORY_MB", default_value_t = 1024)]
+    pub memory_mb: u64,
 
     /// Generations running at once at most (default: the number of CPU cores).
     #[arg(long, env = "CITYMESH_MAX_GENERATIONS")]
@@ -522,11 +524,21 @@ pub struct ServeArgs {
     #[arg(long, env = "CITYMESH_MAX_CONNECTIONS", default_value_t = 1024)]
     pub max_connections: usize,
 
+    /// Further connections kept for `/health` and `/metrics` when the others are all in use
+    /// (any other path answers 503 on them).
+    #[arg(long, env = "CITYMESH_RESERVED_CONNECTIONS", default_value_t = 8)]
+    pub reserved_connections: usize,
+
+    /// Seconds a new connection may stay silent before its first byte; then it is closed.
+    #[arg(long, env = "CITYMESH_FIRST_BYTE_TIMEOUT_S", default_value_t = 5.0)]
+    pub first_byte_timeout_s: f64,
+
     /// Seconds a client may take to send a request's headers.
     #[arg(long, env = "CITYMESH_HEADER_TIMEOUT_S", default_value_t = 10.0)]
     pub header_timeout_s: f64,
 
-    /// Seconds a client may take to send a request's body.
+    /// Seconds a client may take to send a request's whole body, counted from its headers (a
+    /// total deadline: a body trickled byte by byte is cut at it).
     #[arg(long, env = "CITYMESH_BODY_TIMEOUT_S", default_value_t = 30.0)]
     pub body_timeout_s: f64,
 
@@ -534,10 +546,6 @@ pub struct ServeArgs {
     /// is neither read nor answered) before it is closed.
     #[arg(long, env = "CITYMESH_IDLE_TIMEOUT_S", default_value_t = 150.0)]
     pub idle_timeout_s: f64,
-
-    /// Memory for parsed DEM files, in megabytes (an SRTM3 file takes 2.9 MB, SRTM1 26 MB).
-    #[arg(long, env = "CITYMESH_DEM_CACHE_MB", default_value_t = 512)]
-    pub dem_cache_mb: u64,
 
     /// Lowest zoom level /tiles serves.
     #[arg(long, env = "CITYMESH_MIN_ZOOM", default_value_t = 12)]

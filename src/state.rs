@@ -68,4 +68,22 @@ pub struct ServerState {
     pub roofs: Arc<crate::jobs::RoofJobs>,
     /// Origins whose pages may change state (`--cors-origin`), besides the server's own.
     pub cors_origins: Arc<Vec<String>>,
+    /// What the memory caches may hold (`--memory-mb`).
+    pub memory_budget: crate::cache::MemoryBudget,
+}
+
+impl ServerState {
+    /// Bytes each memory cache weighs now, by cache name.
+    pub async fn memory_use(&self) -> Vec<(&'static str, u64)> {
+        let mut out: Vec<(&'static str, u64)> = self.tiles.memory_use().await.to_vec();
+        let dem = self.dem.clone();
+        out.push((
+            "dem",
+            tokio::task::spawn_blocking(move || dem.memory_use())
+                .await
+                .unwrap_or(0),
+        ));
+        out.extend(self.source.memory_use().await);
+        out
+    }
 }

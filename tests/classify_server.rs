@@ -317,7 +317,10 @@ async fn stripped_kirchfeld_classified_through_the_api_agrees_with_its_tags_and_
         ("/classify/0", StatusCode::BAD_REQUEST),
         ("/classify/abc", StatusCode::BAD_REQUEST),
         ("/classify/999999", StatusCode::BAD_REQUEST),
-        ("/classify/00000000000000000000000000000001", StatusCode::NOT_FOUND),
+        (
+            "/classify/00000000000000000000000000000001",
+            StatusCode::NOT_FOUND,
+        ),
         ("/classify/predictions", StatusCode::BAD_REQUEST),
     ] {
         assert_eq!(common::get(&app, uri).await.status, status, "{uri}");

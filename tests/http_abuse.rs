@@ -327,7 +327,7 @@ async fn d6_the_tile_store_stays_under_its_bound_evicting_least_recently_used() 
         &[
             "--tile-store-mb",
             "1",
-            "--tile-cache-mb",
+            "--memory-mb",
             "0",
             "--max-zoom",
             "18",
@@ -542,6 +542,8 @@ fn d3_half_sent_headers_idle_connections_and_the_connection_cap() {
             "2",
             "--max-connections",
             "2",
+            "--reserved-connections",
+            "0",
         ],
     );
     // Keep reading the log so the server never blocks on a full pipe.
@@ -587,4 +589,254 @@ fn d3_half_sent_headers_idle_connections_and_the_connection_cap() {
     );
     child.kill().unwrap();
     child.wait().unwrap();
+}
+
+/// Writes `head`, then trickles `body` a byte at a time, `pause` apart, reading between bytes;
+/// answers the bytes sent of the body and what the server said (once it says anything).
+fn trickle(addr: &str, head: &[u8], body: &[u8], pause: Duration) -> (usize, String) {
+    let mut stream = TcpStream::connect(addr).unwrap();
+    stream.write_all(head).unwrap();
+    stream.set_read_timeout(Some(pause)).unwrap();
+    let mut answer = Vec::new();
+    let mut buf = [0u8; 4096];
+    let mut sent = 0;
+    loop {
+        match stream.read(&mut buf) {
+            Ok(0) => break,
+            Ok(n) => {
+                answer.extend_from_slice(&buf[..n]);
+                if answer.windows(4).any(|w| w == b"\r\n\r\n") {
+                    // The head is in; read what follows for a moment.
+                    stream
+                        .set_read_timeout(Some(Duration::from_millis(500)))
+                        .unwrap();
+                    while let Ok(n) = stream.read(&mut buf) {
+                        if n == 0 {
+                            break;
+                        }
+                        answer.extend_from_slice(&buf[..n]);
+                    }
+                    break;
+                }
+            }
+            Err(_) if sent < body.len() => {
+                if stream.write_all(&body[sent..=sent]).is_err() {
+                    break;
+                }
+                sent += 1;
+            }
+            Err(_) => {
+                // All sent: wait for the answer.
+                stream
+                    .set_read_timeout(Some(Duration::from_secs(30)))
+                    .unwrap();
+            }
+        }
+    }
+    (sent, String::from_utf8_lossy(&answer).into_owned())
+}
+
+#[test]
+fn d7_silent_connections_trickled_bodies_reserved_slots_and_early_413() {
+    let db = tempfile::tempdir().unwrap();
+    let (mut child, addr, log) = serve_binary(
+        db.path(),
+        &[
+            "--first-byte-timeout-s",
+            "1",
+            "--header-timeout-s",
+            "60",
+            "--body-timeout-s",
+            "1",
+            "--idle-timeout-s",
+            "120",
+            "--request-timeout-s",
+            "60",
+            "--max-connections",
+            "2",
+            "--reserved-connections",
+            "1",
+        ],
+    );
+    std::thread::spawn(move || log.for_each(drop));
+    // A connection that never sends a byte gives its slot back after the first-byte timeout,
+    // long before the header (60 s) and idle (120 s) timeouts.
+    let silent = TcpStream::connect(&addr).unwrap();
+    assert!(
+        closed_by_server(silent, Duration::from_secs(20)),
+        "a silent connection held its slot"
+    );
+
+    // A body trickled a byte at a time is cut at the body deadline (1 s), not served for as long
+    // as bytes keep coming.
+    let body = vec![b' '; 400];
+    let (sent, answer) = trickle(
+        &addr,
+        b"POST /classify HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n\
+          Content-Length: 400\r\n\r\n",
+        &body,
+        Duration::from_millis(50),
+    );
+    assert!(answer.starts_with("HTTP/1.1 408"), "{answer}");
+    assert!(answer.contains("\"error\":\"timeout\""), "{answer}");
+    assert!(
+        sent < body.len(),
+        "the whole trickled body was read: {sent}"
+    );
+
+    // An over-limit declared body with Expect: 100-continue is refused before any byte of it.
+    let (sent, answer) = trickle(
+        &addr,
+        b"POST /scene.glb HTTP/1.1\r\nHost: x\r\nContent-Type: application/geo+json\r\n\
+          Content-Length: 999999999\r\nExpect: 100-continue\r\n\r\n",
+        b"",
+        Duration::from_millis(50),
+    );
+    assert_eq!(sent, 0);
+    assert!(answer.starts_with("HTTP/1.1 413"), "{answer}");
+    assert!(!answer.contains("100 Continue"), "{answer}");
+    assert!(answer.contains("\"error\":\"too_large\""), "{answer}");
+
+    // Both general slots held by clients that send their headers slowly: /health still answers
+    // on the reserved slot, and anything else there is a 503 that says why.
+    let mut held = Vec::new();
+    for _ in 0..2 {
+        let mut s = TcpStream::connect(&addr).unwrap();
+        s.write_all(b"GET /health HTTP/1.1\r\n").unwrap();
+        held.push(s);
+    }
+    std::thread::sleep(Duration::from_millis(300));
+    let ask = |path: &str| {
+        let mut c = TcpStream::connect(&addr).unwrap();
+        c.write_all(
+            format!("GET {path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n").as_bytes(),
+        )
+        .unwrap();
+        c.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+        let mut answer = Vec::new();
+        let _ = c.read_to_end(&mut answer);
+        String::from_utf8_lossy(&answer).into_owned()
+    };
+    let health = ask("/health");
+    assert!(health.starts_with("HTTP/1.1 200"), "{health}");
+    let other = ask("/scene?bbox=8.400,49.010,8.401,49.011");
+    assert!(other.starts_with("HTTP/1.1 503"), "{other}");
+    assert!(
+        other.contains("\"error\":\"busy\"") && other.to_lowercase().contains("retry-after"),
+        "{other}"
+    );
+    drop(held);
+    child.kill().unwrap();
+    child.wait().unwrap();
+}
+
+#[tokio::test]
+async fn too_many_header_lines_get_a_json_431() {
+    let db = tempfile::tempdir().unwrap();
+    let app = demo_app(&db, &[]).await;
+    let mut request = Request::get("/health");
+    for i in 0..150 {
+        request = request.header(format!("x-h{i}"), "1");
+    }
+    let (status, _, body) = send(&app, request.body(Body::empty()).unwrap()).await;
+    assert_eq!(status, StatusCode::REQUEST_HEADER_FIELDS_TOO_LARGE);
+    assert_eq!(body["error"], "headers_too_large");
+}
+
+/// An Overpass answer with a dense city: `side` x `side` square buildings, each with a few
+/// tags, about 12 m apart around 8.40 E, 49.01 N.
+fn dense_city(side: usize) -> Vec<u8> {
+    let mut elements = Vec::new();
+    let mut node = 1_i64;
+    for i in 0..side {
+        for j in 0..side {
+            let (lon, lat) = (8.40 + i as f64 * 1.6e-4, 49.01 + j as f64 * 1.1e-4);
+            let mut nodes = Vec::new();
+            for (dx, dy) in [(0.0, 0.0), (1e-4, 0.0), (1e-4, 7e-5), (0.0, 7e-5)] {
+                elements
+                    .push(json!({"type": "node", "id": node, "lon": lon + dx, "lat": lat + dy}));
+                nodes.push(node);
+                node += 1;
+            }
+            nodes.push(nodes[0]);
+            elements.push(json!({
+                "type": "way",
+                "id": (i * side + j + 1) as i64,
+                "nodes": nodes,
+                "tags": {"building": "residential", "building:levels": "3", "roof:shape": "gabled",
+                         "addr:street": "Hauptstraße", "addr:housenumber": format!("{j}")},
+            }));
+        }
+    }
+    serde_json::to_vec(&json!({ "elements": elements })).unwrap()
+}
+
+#[tokio::test]
+async fn d8_memory_caches_stay_under_the_budget_with_a_dense_upstream() {
+    let (upstream, url) = start_upstream(200, &[], dense_city(60)).await;
+    let db = tempfile::tempdir().unwrap();
+    let budget_mb = 16_u64;
+    use clap::Parser;
+    let args = citymesh::cli::ServeArgs::parse_from([
+        "serve",
+        "--dem-dir",
+        dem_dir().to_str().unwrap(),
+        "--cache-db",
+        db.path().join("c.sqlite").to_str().unwrap(),
+        "--overpass-url",
+        &url,
+        "--overpass-retries",
+        "0",
+        "--memory-mb",
+        &budget_mb.to_string(),
+    ]);
+    let state = citymesh::server::build_state(&args).await.unwrap();
+    let app = common::app_of(state.clone());
+    // Long, thin boxes, each over its own list of data tiles (zoom 14, about 2.4 km wide).
+    let mut weighed_most = 0;
+    for k in 0..12 {
+        let lat = 49.000 + f64::from(k) * 0.02;
+        let uri = format!("/scene/stats?bbox=8.30,{lat:.3},8.40,{:.3}", lat + 0.001);
+        let answer = get(&app, &uri).await;
+        assert_eq!(answer.status, StatusCode::OK, "{}", answer.text());
+        let used = state.memory_use().await;
+        let total: u64 = used.iter().map(|(_, b)| b).sum();
+        assert!(
+            total <= state.memory_budget.total,
+            "after box {k}: {used:?} weigh {total} bytes, over the {budget_mb} MB budget"
+        );
+        let of = |name: &str| used.iter().find(|(n, _)| *n == name).unwrap().1;
+        assert!(of("osm_tiles") <= state.memory_budget.osm_tiles, "{used:?}");
+        assert!(
+            of("building_sets") <= state.memory_budget.building_sets,
+            "{used:?}"
+        );
+        weighed_most = weighed_most.max(of("osm_tiles") + of("building_sets"));
+    }
+    // The data did not fit: the caches filled to their shares and evicted.
+    let fetched = upstream.requests.load(Ordering::SeqCst);
+    assert!(fetched >= 24, "{fetched} data tiles fetched");
+    let one_tile = citymesh_core::osm::read_buildings(&dense_city(60))
+        .unwrap()
+        .buildings
+        .iter()
+        .map(citymesh_core::osm::BuildingRecord::byte_size)
+        .sum::<usize>() as u64;
+    assert!(
+        one_tile * fetched as u64 > state.memory_budget.total,
+        "the test must hold more data than the budget"
+    );
+    assert!(
+        weighed_most > state.memory_budget.osm_tiles / 2,
+        "{weighed_most}"
+    );
+    // /metrics reports the same figures.
+    let metrics = get(&app, "/metrics").await.text();
+    assert!(
+        metrics.contains(&format!(
+            "citymesh_memory_cache_bytes{{cache=\"budget\"}} {}",
+            budget_mb << 20
+        )),
+        "{metrics}"
+    );
 }

@@ -3,14 +3,17 @@
 //! tile share one lookup and one generation ([`tile_cache`]). Box scenes are kept in memory
 //! with their figures ([`scene_cache`]). Changed data invalidates exactly
 //! the content over the changed area, in both levels ([`invalidation`]). Cached entries are plain
-//! bytes and an ETag string: HTTP types stay in `crate::routes`.
+//! bytes and an ETag string: HTTP types stay in `crate::routes`. Every in-memory cache has its
+//! share of one memory budget ([`budget`]).
 
+pub mod budget;
 pub mod invalidation;
 pub mod key;
 mod scene_cache;
 mod store;
 mod tile_cache;
 
+pub use budget::MemoryBudget;
 pub use key::{Encoding, Region, RoofSource, TileId, TileKey};
 pub use scene_cache::{CachedScene, SceneCache};
 pub use store::{StoredTile, TileStore};

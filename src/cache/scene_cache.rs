@@ -41,6 +41,12 @@ impl SceneCache {
         }
     }
 
+    /// Bytes the scenes weigh now.
+    pub async fn weighed_bytes(&self) -> u64 {
+        self.memory.run_pending_tasks().await;
+        self.memory.weighted_size()
+    }
+
     /// The scene of `key` from memory (`true`), else `generate`d once however many ask at once
     /// (`false`). Errors are never cached.
     pub async fn get_or_generate<F, Fut, E>(

@@ -78,6 +78,7 @@ pub struct TileCache {
 }
 
 impl TileCache {
+    /// `memory_bytes` in all: three quarters for tiles, a quarter for box scenes.
     pub fn new(
         store: TileStore,
         memory_bytes: u64,
@@ -85,7 +86,7 @@ impl TileCache {
         metrics: Arc<Metrics>,
     ) -> Self {
         let memory = moka::future::Cache::builder()
-            .max_capacity(memory_bytes)
+            .max_capacity(memory_bytes / 4 * 3)
             // The bytes and what holding them costs besides (key, ETag, counters, moka's entry).
             .weigher(|_, t: &CachedTile| {
                 u32::try_from(t.bytes.len() + ENTRY_OVERHEAD).unwrap_or(u32::MAX)
@@ -98,12 +99,20 @@ impl TileCache {
             store,
             data_version: Arc::from(data_version),
             metrics,
-            // A quarter of the memory budget again for box scenes, which count the same
-            // invalidations.
+            // A quarter for box scenes, which count the same invalidations.
             scenes: SceneCache::new(memory_bytes / 4, epoch.clone()),
             epoch,
             writes: TaskTracker::new(),
         }
+    }
+
+    /// Bytes the tiles and the box scenes in memory weigh now.
+    pub async fn memory_use(&self) -> [(&'static str, u64); 2] {
+        self.memory.run_pending_tasks().await;
+        [
+            ("tiles", self.memory.weighted_size()),
+            ("scenes", self.scenes.weighed_bytes().await),
+        ]
     }
 
     /// Waits until every write of a generated tile to SQLite has finished (at shutdown, and

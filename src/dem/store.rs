@@ -27,6 +27,12 @@ pub struct DemLookup {
 }
 
 impl DemStore {
+    /// Bytes the parsed files in memory weigh now.
+    pub fn memory_use(&self) -> u64 {
+        self.cache.run_pending_tasks();
+        self.cache.weighted_size()
+    }
+
     /// Indexes the SRTM files under `dir` (recursively). A missing directory gives an empty store:
     /// all ground is the flat fallback.
     pub fn open(dir: &Path, cache_bytes: u64) -> Self {

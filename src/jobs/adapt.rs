@@ -88,12 +88,13 @@ pub struct AdaptExample {
 
 /// The tagged buildings of `records` whose footprint's centre passes `inside`, with their class,
 /// at most [`MAX_EXAMPLES_PER_CLASS`] per class.
-pub fn tagged_examples(
-    records: &[BuildingRecord],
+pub fn tagged_examples<R: std::borrow::Borrow<BuildingRecord>>(
+    records: &[R],
     inside: impl Fn(&[[f64; 2]]) -> bool,
 ) -> Vec<AdaptExample> {
     let class_of: std::collections::HashMap<String, RoofClass> = records
         .iter()
+        .map(R::borrow)
         .filter_map(|r| {
             let shape = RoofShape::from_tag(r.tags.get("roof:shape")?)?;
             Some((r.id.to_string(), RoofClass::of_shape(shape)?))

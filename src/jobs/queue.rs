@@ -127,8 +127,11 @@ pub trait RoofJobQueue: Send + Sync {
 
     /// Extends the lease of the claim's jobs still running under it to `lease` from now; answers
     /// how many it holds.
-    fn extend(&self, claim: i64, lease: Duration)
-    -> impl Future<Output = Result<u64, JobError>> + Send;
+    fn extend(
+        &self,
+        claim: i64,
+        lease: Duration,
+    ) -> impl Future<Output = Result<u64, JobError>> + Send;
 
     /// Stores the prediction (which took `work_ms`) and marks the job done, in one transaction, if the job is still
     /// this claim's (running, under the same claim); `false` when its lease ran out and another

@@ -4,6 +4,7 @@
 use super::queue::NewJob;
 use citymesh_core::building::cluster::part_of;
 use citymesh_core::osm::BuildingRecord;
+use std::borrow::Borrow;
 use std::collections::BTreeMap;
 
 /// Which buildings to classify.
@@ -16,14 +17,18 @@ pub enum Selection {
 }
 
 /// The jobs, and the buildings left out by reason (`part`, `tagged`, `has_parts`).
-pub fn select_buildings(
-    records: &[BuildingRecord],
+pub fn select_buildings<R: Borrow<BuildingRecord>>(
+    records: &[R],
     selection: Selection,
 ) -> (Vec<NewJob>, BTreeMap<String, u64>) {
     let mut skipped: BTreeMap<String, u64> = BTreeMap::new();
     let mut jobs = Vec::new();
-    let parts: Vec<&BuildingRecord> = records.iter().filter(|r| r.is_part).collect();
-    for record in records {
+    let parts: Vec<&BuildingRecord> = records
+        .iter()
+        .map(R::borrow)
+        .filter(|r| r.is_part)
+        .collect();
+    for record in records.iter().map(R::borrow) {
         let reason = if record.is_part {
             Some("part")
         } else if selection == Selection::Untagged && record.tags.contains_key("roof:shape") {

@@ -507,12 +507,27 @@ mod tests {
             .await
             .unwrap();
         let held = q.claim(10, Duration::from_millis(1)).await.unwrap();
-        assert_eq!(q.extend(held[0].claim, Duration::from_secs(60)).await.unwrap(), 1);
+        assert_eq!(
+            q.extend(held[0].claim, Duration::from_secs(60))
+                .await
+                .unwrap(),
+            1
+        );
         tokio::time::sleep(Duration::from_millis(20)).await;
         // The first lease would have run out; the extended one holds.
-        assert!(q.claim(10, Duration::from_secs(60)).await.unwrap().is_empty());
+        assert!(
+            q.claim(10, Duration::from_secs(60))
+                .await
+                .unwrap()
+                .is_empty()
+        );
         assert!(q.complete(&held[0], p(), 1.0).await.unwrap());
-        assert_eq!(q.extend(held[0].claim, Duration::from_secs(60)).await.unwrap(), 0);
+        assert_eq!(
+            q.extend(held[0].claim, Duration::from_secs(60))
+                .await
+                .unwrap(),
+            0
+        );
     }
 
     #[tokio::test]

@@ -67,6 +67,14 @@ pub struct Metrics {
     pub imagery_fetches: Family<ResultLabels, Counter>,
     /// Time to classify one batch of crops.
     pub inference_seconds: Histogram,
+    /// Bytes each memory cache weighs (set when /metrics is read), and the budget.
+    pub memory_cache_bytes: Family<CacheNameLabels, prometheus_client::metrics::gauge::Gauge>,
+}
+
+#[derive(Debug, Clone, Hash, PartialEq, Eq, prometheus_client::encoding::EncodeLabelSet)]
+pub struct CacheNameLabels {
+    /// `tiles`, `scenes`, `dem`, `osm_tiles`, `building_sets`, or `budget` (the whole budget).
+    pub cache: &'static str,
 }
 
 fn latency_buckets() -> impl Iterator<Item = f64> {
@@ -88,6 +96,12 @@ impl Default for Metrics {
         let roof_jobs = Family::default();
         let imagery_fetches = Family::<ResultLabels, Counter>::default();
         let inference_seconds = Histogram::new(latency_buckets());
+        let memory_cache_bytes = Family::default();
+        registry.register(
+            "memory_cache_bytes",
+            "Bytes each memory cache holds, weighed as it is bounded (cache=budget: --memory-mb)",
+            memory_cache_bytes.clone(),
+        );
         registry.register(
             "roof_jobs",
             "Roof classification jobs by state",
@@ -136,6 +150,7 @@ impl Default for Metrics {
             roof_jobs,
             imagery_fetches,
             inference_seconds,
+            memory_cache_bytes,
         }
     }
 }

@@ -13,6 +13,8 @@ use axum::response::{IntoResponse, Response};
 pub const MAX_URI_BYTES: usize = 8 * 1024;
 /// Largest header block accepted (names and values), bytes.
 pub const MAX_HEADER_BYTES: usize = 32 * 1024;
+/// Most header lines accepted.
+pub const MAX_HEADER_COUNT: usize = 100;
 
 fn json_error(status: StatusCode, code: &str, detail: String) -> Response {
     (
@@ -44,6 +46,16 @@ pub async fn json_errors(request: Request, next: Next) -> Response {
             "uri_too_long",
             format!(
                 "the request target has {uri_len} bytes, more than {MAX_URI_BYTES}: shorten the query"
+            ),
+        );
+    }
+    let lines = request.headers().len();
+    if lines > MAX_HEADER_COUNT {
+        return json_error(
+            StatusCode::REQUEST_HEADER_FIELDS_TOO_LARGE,
+            "headers_too_large",
+            format!(
+                "the request has {lines} header lines, more than {MAX_HEADER_COUNT}: send fewer"
             ),
         );
     }

@@ -1,6 +1,7 @@
 //! `GET /metrics`: Prometheus text format, and the middleware that counts every request.
 
 use crate::error::ErrorBody;
+use crate::metrics::CacheNameLabels;
 use crate::state::AppState;
 use axum::extract::{MatchedPath, Request, State};
 use axum::http::{HeaderValue, header};
@@ -15,6 +16,15 @@ use std::time::Instant;
         (status = 404, description = "Never: listed because every operation names its client errors", body = ErrorBody),
     ))]
 pub async fn metrics(State(state): State<AppState>) -> Response {
+    let gauges = &state.metrics.memory_cache_bytes;
+    for (cache, bytes) in state.memory_use().await {
+        gauges
+            .get_or_create(&CacheNameLabels { cache })
+            .set(i64::try_from(bytes).unwrap_or(i64::MAX));
+    }
+    gauges
+        .get_or_create(&CacheNameLabels { cache: "budget" })
+        .set(i64::try_from(state.memory_budget.total).unwrap_or(i64::MAX));
     (
         [(
             header::CONTENT_TYPE,

@@ -9,12 +9,15 @@ mod classify_adapt;
 mod conditional;
 mod cross_origin;
 mod error_bodies;
+
+pub use error_bodies::{MAX_HEADER_BYTES, MAX_HEADER_COUNT, MAX_URI_BYTES};
 mod headers;
 mod health;
 mod metrics;
 mod pages;
 mod params;
 mod procedural;
+mod request_body;
 mod roofs;
 mod scene;
 mod scene_stats;
@@ -31,7 +34,6 @@ use tower_http::compression::CompressionLayer;
 use tower_http::compression::predicate::{NotForContentType, Predicate, SizeAbove};
 use tower_http::cors::{Any, CorsLayer};
 use tower_http::services::ServeDir;
-use tower_http::timeout::RequestBodyTimeoutLayer;
 use tower_http::trace::TraceLayer;
 use utoipa::OpenApi;
 use utoipa::openapi::OpenApi as OpenApiDocument;
@@ -160,7 +162,10 @@ pub fn app(state: AppState) -> Router {
         )
         .merge(SwaggerUi::new("/docs").url("/openapi.json", with_suffixes(doc)))
         .fallback(not_found)
-        .layer(RequestBodyTimeoutLayer::new(state.limits.body_timeout))
+        .layer(axum::middleware::from_fn_with_state(
+            state.clone(),
+            request_body::guard,
+        ))
         .layer(axum::middleware::from_fn(error_bodies::json_errors))
         .layer(axum::middleware::from_fn_with_state(
             state.clone(),

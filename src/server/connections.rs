@@ -1,9 +1,12 @@
 //! Accepting connections with limits: at most `--max-connections` open at once (further clients
-//! wait in the listen backlog), request headers within `--header-timeout-s`, and no connection
-//! silent for longer than `--idle-timeout-s` (neither reading nor writing: an idle keep-alive, a
-//! client that stopped sending its request, or one that stopped reading its answer). Request
-//! bodies are bounded in time by the router (`--body-timeout-s`). On shutdown, requests in
-//! flight finish.
+//! wait in the listen backlog), plus `--reserved-connections` that only `/health` and `/metrics`
+//! may use (so a flood of connections never blinds monitoring); a first byte within
+//! `--first-byte-timeout-s` (a client that connects and says nothing gives its slot back fast),
+//! request headers within `--header-timeout-s`, and no connection silent for longer than
+//! `--idle-timeout-s` (neither reading nor writing: an idle keep-alive, a client that stopped
+//! sending its request, or one that stopped reading its answer). Request bodies are bounded in
+//! time by the router (`--body-timeout-s`, a total deadline). On shutdown, requests in flight
+//! finish.
 
 use axum::Router;
 use hyper_util::rt::{TokioExecutor, TokioIo, TokioTimer};
@@ -25,8 +28,46 @@ use tokio::time::{Instant, Sleep};
 #[derive(Debug, Clone, Copy)]
 pub struct ConnectionLimits {
     pub max_connections: usize,
+    /// Further connections, for `/health` and `/metrics` only, taken when the others are all
+    /// in use.
+    pub reserved_connections: usize,
+    pub first_byte_timeout: Duration,
     pub header_timeout: Duration,
     pub idle_timeout: Duration,
+}
+
+/// Header lines hyper parses; the router allows [`crate::routes::MAX_HEADER_COUNT`].
+const HYPER_MAX_HEADERS: usize = 1_000;
+
+/// Paths a reserved connection serves.
+const SERVICE_PATHS: [&str; 2] = ["/health", "/metrics"];
+
+/// On a reserved connection: the service routes, and a 503 for everything else.
+async fn service_routes_only(
+    request: axum::extract::Request,
+    next: axum::middleware::Next,
+) -> axum::response::Response {
+    use axum::response::IntoResponse;
+    if SERVICE_PATHS.contains(&request.uri().path()) {
+        return next.run(request).await;
+    }
+    let mut answer = (
+        axum::http::StatusCode::SERVICE_UNAVAILABLE,
+        axum::Json(crate::error::ErrorBody {
+            error: "busy".to_owned(),
+            detail: "every connection slot is taken (--max-connections); this one is kept for \
+                     /health and /metrics: try again shortly"
+                .to_owned(),
+            feature: None,
+            field: None,
+        }),
+    )
+        .into_response();
+    answer.headers_mut().insert(
+        axum::http::header::RETRY_AFTER,
+        axum::http::HeaderValue::from_static("1"),
+    );
+    answer
 }
 
 /// How long requests in flight may take to finish after a shutdown signal.
@@ -40,21 +81,36 @@ pub async fn serve(
     shutdown: impl Future<Output = ()>,
 ) {
     let permits = Arc::new(Semaphore::new(limits.max_connections));
+    let reserved = Arc::new(Semaphore::new(limits.reserved_connections));
+    let reserved_app = app
+        .clone()
+        .layer(axum::middleware::from_fn(service_routes_only));
     let mut builder = Builder::new(TokioExecutor::new());
     builder
         .http1()
         .timer(TokioTimer::new())
-        .header_read_timeout(limits.header_timeout);
+        .header_read_timeout(limits.header_timeout)
+        // Far above what the router accepts, so the router refuses (with a JSON body) what
+        // hyper would refuse with an empty one.
+        .max_headers(HYPER_MAX_HEADERS);
     builder.http2().timer(TokioTimer::new());
     let graceful = GracefulShutdown::new();
     tokio::pin!(shutdown);
     loop {
-        let permit = tokio::select! {
-            permit = permits.clone().acquire_owned() => match permit {
-                Ok(p) => p,
-                Err(_) => break,
+        // A general slot if one is free, else a reserved one, else whichever frees first.
+        let taken = match permits.clone().try_acquire_owned() {
+            Ok(p) => Ok((p, false)),
+            Err(_) => match reserved.clone().try_acquire_owned() {
+                Ok(p) => Ok((p, true)),
+                Err(_) => tokio::select! {
+                    p = permits.clone().acquire_owned() => p.map(|p| (p, false)),
+                    p = reserved.clone().acquire_owned() => p.map(|p| (p, true)),
+                    () = &mut shutdown => break,
+                },
             },
-            () = &mut shutdown => break,
+        };
+        let Ok((permit, is_reserved)) = taken else {
+            break;
         };
         let stream = tokio::select! {
             accepted = listener.accept() => match accepted {
@@ -69,8 +125,16 @@ pub async fn serve(
             () = &mut shutdown => break,
         };
         let _ = stream.set_nodelay(true);
-        let io = TokioIo::new(IdleTimeout::new(stream, limits.idle_timeout));
-        let service = TowerToHyperService::new(app.clone());
+        let io = TokioIo::new(IdleTimeout::new(
+            stream,
+            limits.first_byte_timeout,
+            limits.idle_timeout,
+        ));
+        let service = TowerToHyperService::new(if is_reserved {
+            reserved_app.clone()
+        } else {
+            app.clone()
+        });
         let connection = graceful.watch(
             builder
                 .serve_connection_with_upgrades(io, service)
@@ -92,24 +156,29 @@ pub async fn serve(
 }
 
 /// A TCP stream that fails once it has been silent (no byte read or written while waiting for
-/// one) for longer than its limit.
+/// one) for longer than its limit; before the client's first byte, the (shorter) first-byte
+/// limit holds.
 ///
 /// Traffic only notes the time; the timer is moved when it fires early (after the last traffic
 /// plus the limit), so a busy connection does not touch the timer wheel on every read and write.
 struct IdleTimeout {
     inner: TcpStream,
     limit: Duration,
+    /// The idle limit once the client has sent something.
+    idle_limit: Duration,
     last_traffic: Instant,
     deadline: Pin<Box<Sleep>>,
 }
 
 impl IdleTimeout {
-    fn new(inner: TcpStream, limit: Duration) -> Self {
+    fn new(inner: TcpStream, first_byte: Duration, idle: Duration) -> Self {
+        let first = first_byte.min(idle);
         Self {
             inner,
-            limit,
+            limit: first,
+            idle_limit: idle,
             last_traffic: Instant::now(),
-            deadline: Box::pin(tokio::time::sleep(limit)),
+            deadline: Box::pin(tokio::time::sleep(first)),
         }
     }
 
@@ -148,6 +217,8 @@ impl AsyncRead for IdleTimeout {
             Poll::Ready(result) => {
                 if buf.filled().len() > before {
                     self.active();
+                    // The client has spoken: from now on, the idle limit.
+                    self.limit = self.idle_limit;
                 }
                 Poll::Ready(result)
             }

@@ -6,14 +6,14 @@ mod connections;
 
 pub use connections::ConnectionLimits;
 
-use crate::cache::{TileCache, TileStore, invalidation};
+use crate::cache::{MemoryBudget, TileCache, TileStore, invalidation};
 use crate::classifier::RoofClassifier as _;
 use crate::cli::ServeArgs;
 use crate::db;
 use crate::dem::DemStore;
 use crate::jobs::{RoofJobs, SqliteJobQueue};
 use crate::metrics::Metrics;
-use crate::source::data_tiles::OsmTileStore;
+use crate::source::data_tiles::{DataTileMemory, OsmTileStore};
 use crate::source::{BuildingSource, DataTileSource, FileSource, load_osm_files};
 use crate::state::{AppState, Limits, ServerState};
 use crate::upstream::{OverpassClient, OverpassConfig};
@@ -49,6 +49,7 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         ("--header-timeout-s", args.header_timeout_s),
         ("--body-timeout-s", args.body_timeout_s),
         ("--idle-timeout-s", args.idle_timeout_s),
+        ("--first-byte-timeout-s", args.first_byte_timeout_s),
     ] {
         anyhow::ensure!(
             value > 0.0 && value.is_finite() && value < 1e9,
@@ -74,8 +75,8 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         .await
         .with_context(|| format!("opening the cache database {}", args.cache_db))?;
     let dem_dir = args.dem_dir.clone();
-    let cache_bytes = args.dem_cache_mb.saturating_mul(1 << 20);
-    let dem = tokio::task::spawn_blocking(move || DemStore::open(&dem_dir, cache_bytes)).await?;
+    let memory = MemoryBudget::of_megabytes(args.memory_mb);
+    let dem = tokio::task::spawn_blocking(move || DemStore::open(&dem_dir, memory.dem)).await?;
     let metrics = Arc::new(Metrics::default());
     let store = OsmTileStore::new(pool.clone());
     // Nothing configured at all: a procedural city, so a fresh `cargo run` shows something.
@@ -123,6 +124,10 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
                 store,
                 upstream,
                 (args.osm_ttl_hours * 3600.0) as i64,
+                DataTileMemory {
+                    parsed_bytes: memory.osm_tiles,
+                    set_bytes: memory.building_sets,
+                },
                 metrics.clone(),
             )
         }
@@ -137,7 +142,7 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         TileStore::bounded(pool.clone(), args.tile_store_mb.saturating_mul(1 << 20)).await?;
     let tiles = Arc::new(TileCache::new(
         store,
-        args.tile_cache_mb.saturating_mul(1 << 20),
+        memory.tiles,
         data_version,
         metrics.clone(),
     ));
@@ -200,6 +205,7 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         classifier,
         roofs,
         cors_origins: Arc::new(args.cors_origin.clone()),
+        memory_budget: memory,
         dem: Arc::new(dem),
         source,
         tiles,
@@ -269,6 +275,8 @@ pub async fn run(args: ServeArgs) -> anyhow::Result<()> {
     }
     let limits = ConnectionLimits {
         max_connections: args.max_connections.max(1),
+        reserved_connections: args.reserved_connections,
+        first_byte_timeout: Duration::from_secs_f64(args.first_byte_timeout_s),
         header_timeout: Duration::from_secs_f64(args.header_timeout_s),
         idle_timeout: Duration::from_secs_f64(args.idle_timeout_s),
     };

@@ -93,6 +93,11 @@ pub trait BuildingSource: Send + Sync {
 
     /// The extent of all buildings when the source knows it up front (files), else `None`.
     fn extent(&self) -> Option<GeoBbox>;
+
+    /// Bytes its memory caches weigh now, by cache (none for files, held whole).
+    fn memory_use<'a>(&'a self) -> BoxFuture<'a, Vec<(&'static str, u64)>> {
+        Box::pin(async { Vec::new() })
+    }
 }
 
 /// Capacity of a source's change announcements; a subscriber that falls further behind drops

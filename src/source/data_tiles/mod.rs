@@ -14,6 +14,7 @@ use super::{
     AreaBuildings, BuildingSource, CHANGE_CAPACITY, DataChanged, SourceError, short_list,
     skips_near,
 };
+use crate::cache::budget::weight;
 use crate::metrics::{Metrics, UpstreamLabels};
 use crate::upstream::{OverpassClient, OverpassError};
 use citymesh_core::building::set::BuildingSet;
@@ -29,7 +30,8 @@ use tokio::sync::broadcast;
 
 /// One parsed data tile.
 struct ParsedDataTile {
-    records: Vec<BuildingRecord>,
+    /// Shared with the building sets made of it.
+    records: Vec<Arc<BuildingRecord>>,
     /// Buildings of the data tile that could not be built, and those built with less.
     skipped: Vec<Skipped>,
     repaired: Vec<Repaired>,
@@ -38,6 +40,27 @@ struct ParsedDataTile {
     /// When it was fetched (Unix seconds), for data from Overpass; `None` for imported data,
     /// which is never refreshed.
     fetched_at: Option<i64>,
+}
+
+impl ParsedDataTile {
+    /// Bytes it occupies, generously counted.
+    fn byte_size(&self) -> usize {
+        std::mem::size_of::<Self>()
+            + self
+                .records
+                .iter()
+                .map(|r| r.byte_size() + std::mem::size_of::<Arc<BuildingRecord>>())
+                .sum::<usize>()
+            + self.skipped.capacity() * std::mem::size_of::<Skipped>()
+            + self.repaired.capacity() * std::mem::size_of::<Repaired>()
+    }
+}
+
+/// Bytes of memory the parsed data tiles and the building sets may hold.
+#[derive(Debug, Clone, Copy)]
+pub struct DataTileMemory {
+    pub parsed_bytes: u64,
+    pub set_bytes: u64,
 }
 
 pub struct DataTileSource {
@@ -66,17 +89,22 @@ impl DataTileSource {
         store: OsmTileStore,
         upstream: Option<Arc<OverpassClient>>,
         ttl_secs: i64,
+        memory: DataTileMemory,
         metrics: Arc<Metrics>,
     ) -> Arc<Self> {
         Arc::new(Self {
             store,
             upstream,
             ttl_secs,
-            // Parsed records take roughly ten times the bytes of their count in kilobytes;
-            // a few hundred data tiles cover a large city.
-            parsed: moka::future::Cache::builder().max_capacity(512).build(),
+            parsed: moka::future::Cache::builder()
+                .max_capacity(memory.parsed_bytes)
+                .weigher(|_, p: &Arc<ParsedDataTile>| weight(p.byte_size()))
+                .build(),
             sets: moka::future::Cache::builder()
-                .max_capacity(256)
+                .max_capacity(memory.set_bytes)
+                .weigher(|k: &Vec<TileCoord>, s: &Arc<BuildingSet>| {
+                    weight(s.byte_size() + k.capacity() * std::mem::size_of::<TileCoord>())
+                })
                 .support_invalidation_closures()
                 .build(),
             refreshing: Arc::new(Mutex::new(HashSet::new())),
@@ -109,13 +137,13 @@ impl DataTileSource {
                 let parsed = parsed.clone();
                 tokio::task::spawn_blocking(move || {
                     let mut seen = HashSet::new();
-                    let records: Vec<BuildingRecord> = parsed
+                    let records: Vec<Arc<BuildingRecord>> = parsed
                         .iter()
                         .flat_map(|p| &p.records)
                         .filter(|r| seen.insert(r.id))
                         .cloned()
                         .collect();
-                    Arc::new(BuildingSet::new(records))
+                    Arc::new(BuildingSet::from_shared(records))
                 })
                 .await
                 .map_err(SourceError::from)
@@ -279,7 +307,7 @@ async fn parse(
         read_buildings(&body)
             .map(|b| {
                 Arc::new(ParsedDataTile {
-                    records: b.buildings,
+                    records: b.buildings.into_iter().map(Arc::new).collect(),
                     skipped: b.skipped,
                     repaired: b.repaired,
                     present: true,
@@ -309,6 +337,17 @@ impl BuildingSource for DataTileSource {
 
     fn summary(&self) -> usize {
         self.parsed.entry_count() as usize
+    }
+
+    fn memory_use<'a>(&'a self) -> BoxFuture<'a, Vec<(&'static str, u64)>> {
+        Box::pin(async move {
+            self.parsed.run_pending_tasks().await;
+            self.sets.run_pending_tasks().await;
+            vec![
+                ("osm_tiles", self.parsed.weighted_size()),
+                ("building_sets", self.sets.weighted_size()),
+            ]
+        })
     }
 
     fn extent(&self) -> Option<GeoBbox> {

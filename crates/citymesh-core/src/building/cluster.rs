@@ -93,10 +93,10 @@ pub fn records_extent(records: &[BuildingRecord]) -> Option<GeoBbox> {
 
 /// Groups records into clusters; each cluster lists record indices in ascending order, and the
 /// clusters are ordered by their first record.
-pub fn clusters(records: &[BuildingRecord]) -> Vec<Vec<usize>> {
+pub fn clusters<R: std::borrow::Borrow<BuildingRecord>>(records: &[R]) -> Vec<Vec<usize>> {
     let mut uf = UnionFind((0..records.len()).collect());
     let mut first_with: HashMap<NodeRef, usize> = HashMap::default();
-    for (i, b) in records.iter().enumerate() {
+    for (i, b) in records.iter().map(R::borrow).enumerate() {
         for node in b.outers.iter().chain(&b.inners).flat_map(|r| &r.nodes) {
             let j = *first_with.entry(NodeRef::of(node)).or_insert(i);
             uf.union(i, j);
@@ -106,7 +106,12 @@ pub fn clusters(records: &[BuildingRecord]) -> Vec<Vec<usize>> {
     const CELL: f64 = 0.002;
     let cell = |lon: f64, lat: f64| ((lon / CELL).floor() as i64, (lat / CELL).floor() as i64);
     let mut grid: HashMap<(i64, i64), Vec<usize>> = HashMap::default();
-    for (i, b) in records.iter().enumerate().filter(|(_, b)| !b.is_part) {
+    for (i, b) in records
+        .iter()
+        .map(R::borrow)
+        .enumerate()
+        .filter(|(_, b)| !b.is_part)
+    {
         let [x0, y0, x1, y1] = record_bounds(b);
         let ((cx0, cy0), (cx1, cy1)) = (cell(x0, y0), cell(x1, y1));
         if (cx1 - cx0 + 1) * (cy1 - cy0 + 1) > 10_000 {
@@ -118,14 +123,19 @@ pub fn clusters(records: &[BuildingRecord]) -> Vec<Vec<usize>> {
             }
         }
     }
-    for (i, p) in records.iter().enumerate().filter(|(_, b)| b.is_part) {
+    for (i, p) in records
+        .iter()
+        .map(R::borrow)
+        .enumerate()
+        .filter(|(_, b)| b.is_part)
+    {
         let Some(ring) = p.outers.first() else {
             continue;
         };
         let (x, y) = ring_centre(&ring.nodes);
         if let Some(candidates) = grid.get(&cell(x, y)) {
             for &o in candidates {
-                if part_of(p, &records[o]) {
+                if part_of(p, records[o].borrow()) {
                     uf.union(i, o);
                 }
             }

@@ -3,12 +3,16 @@
 //!
 //! Each cluster has one representative point, the centre of its bounding box; a tile holds the
 //! clusters whose point lies in it, so every building lands in exactly one tile, whole.
+//!
+//! Records are shared (`Arc`): sets made from the same parsed data hold the same records, not
+//! copies of them.
 
 use super::cluster::{clusters, record_bounds};
 use crate::geo::{GeoBbox, ImplicitTile, TileCoord};
 use crate::osm::BuildingRecord;
 use foldhash::HashMap;
 use std::collections::BTreeSet;
+use std::sync::Arc;
 
 /// Grid cell size in degrees (about 500 m).
 const CELL: f64 = 0.005;
@@ -46,7 +50,7 @@ impl ClusterInfo {
 /// Buildings with their clusters and a spatial index.
 #[derive(Debug, Clone, Default)]
 pub struct BuildingSet {
-    records: Vec<BuildingRecord>,
+    records: Vec<Arc<BuildingRecord>>,
     clusters: Vec<ClusterInfo>,
     grid: HashMap<(i64, i64), Vec<u32>>,
 }
@@ -58,7 +62,12 @@ fn cell(lon: f64, lat: f64) -> (i64, i64) {
 impl BuildingSet {
     /// Indexes records. Records with no outer ring or no finite coordinates are left out.
     pub fn new(records: Vec<BuildingRecord>) -> Self {
-        let records: Vec<BuildingRecord> = records
+        Self::from_shared(records.into_iter().map(Arc::new).collect())
+    }
+
+    /// Indexes shared records, as [`BuildingSet::new`] does, without copying them.
+    pub fn from_shared(records: Vec<Arc<BuildingRecord>>) -> Self {
+        let records: Vec<Arc<BuildingRecord>> = records
             .into_iter()
             .filter(|r| {
                 let b = record_bounds(r);
@@ -105,8 +114,32 @@ impl BuildingSet {
         out
     }
 
-    pub fn records(&self) -> &[BuildingRecord] {
+    pub fn records(&self) -> &[Arc<BuildingRecord>] {
         &self.records
+    }
+
+    /// Bytes the set occupies, its records counted in full even when other sets share them (an
+    /// upper bound, so caches that weigh by it stay under their budget).
+    pub fn byte_size(&self) -> usize {
+        let records: usize = self
+            .records
+            .iter()
+            .map(|r| r.byte_size() + std::mem::size_of::<Arc<BuildingRecord>>())
+            .sum();
+        let clusters: usize = self
+            .clusters
+            .iter()
+            .map(|c| {
+                std::mem::size_of::<ClusterInfo>()
+                    + c.records.capacity() * std::mem::size_of::<usize>()
+            })
+            .sum();
+        let grid: usize = self
+            .grid
+            .values()
+            .map(|v| 48 + v.capacity() * std::mem::size_of::<u32>())
+            .sum();
+        std::mem::size_of::<Self>() + records + clusters + grid
     }
 
     pub fn clusters(&self) -> &[ClusterInfo] {
@@ -119,7 +152,10 @@ impl BuildingSet {
 
     /// The records of a cluster.
     pub fn cluster_records(&self, c: &ClusterInfo) -> Vec<&BuildingRecord> {
-        c.records.iter().map(|&i| &self.records[i]).collect()
+        c.records
+            .iter()
+            .map(|&i| self.records[i].as_ref())
+            .collect()
     }
 
     /// Every cluster's records, in cluster order: the input of [`crate::scene::Scene::new`].

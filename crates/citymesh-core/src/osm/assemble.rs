@@ -60,6 +60,32 @@ pub struct BuildingRecord {
     pub tags: Tags,
 }
 
+impl BuildingRecord {
+    /// Bytes the record occupies in memory, counted generously (each allocation's bookkeeping
+    /// included): what a cache weighs it by.
+    pub fn byte_size(&self) -> usize {
+        /// A heap allocation's bookkeeping, and a B-tree entry's share of its node.
+        const ALLOCATION: usize = 16;
+        const TAG_ENTRY: usize = 64;
+        let rings: usize = self
+            .outers
+            .iter()
+            .chain(&self.inners)
+            .map(|r| {
+                std::mem::size_of::<Ring>()
+                    + ALLOCATION
+                    + r.nodes.capacity() * std::mem::size_of::<RingNode>()
+            })
+            .sum();
+        let tags: usize = self
+            .tags
+            .iter()
+            .map(|(k, v)| TAG_ENTRY + k.capacity() + v.capacity() + 2 * ALLOCATION)
+            .sum();
+        std::mem::size_of::<Self>() + 2 * ALLOCATION + rings + tags
+    }
+}
+
 /// Why a building could not be built from the data.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum SkipReason {
