@@ -200,14 +200,30 @@ impl From<tokio::task::JoinError> for AppError {
     }
 }
 
+/// Seconds a client waits before trying again when the database was busy.
+const DATABASE_RETRY_AFTER_SECS: u64 = 2;
+
 impl From<sqlx::Error> for AppError {
     fn from(e: sqlx::Error) -> Self {
+        if crate::db::is_busy(&e) {
+            tracing::warn!("cache database busy: {e}");
+            return AppError::Unavailable {
+                code: "database_busy",
+                detail: "the cache database is busy with other writes; try again after the \
+                         Retry-After delay"
+                    .to_owned(),
+                retry_after_secs: DATABASE_RETRY_AFTER_SECS,
+            };
+        }
         AppError::internal(format!("cache database: {e}"))
     }
 }
 
 impl From<crate::jobs::JobError> for AppError {
     fn from(e: crate::jobs::JobError) -> Self {
-        AppError::internal(e)
+        match e {
+            crate::jobs::JobError::Store(e) => e.into(),
+            other => AppError::internal(other),
+        }
     }
 }

@@ -670,3 +670,121 @@ async fn a_job_two_batches_share_survives_the_deletion_of_one() {
     assert_eq!(ended, queued, "{done}");
     assert_eq!(done["jobs"]["cancelled"], 0);
 }
+
+/// Buildings (not parts) of `records` whose box's centre lies in `bbox` and that carry
+/// `roof:shape`.
+fn tagged_in(records: &[BuildingRecord], bbox: &GeoBbox) -> u64 {
+    records
+        .iter()
+        .filter(|r| !r.is_part && r.tags.contains_key("roof:shape"))
+        .filter(|r| {
+            let [w, s, e, n] = citymesh_core::building::cluster::record_bounds(r);
+            bbox.contains((w + e) / 2.0, (s + n) / 2.0)
+        })
+        .count() as u64
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn a_flood_of_district_batches_answers_no_500_and_cached_tiles_keep_being_served() {
+    let dir = tempfile::tempdir().unwrap();
+    let osm = common::data_dir().join("osm/karlsruhe-kirchfeld.osm.pbf");
+    let records = read_buildings(&common::osm_bytes("karlsruhe-kirchfeld.osm.pbf"))
+        .unwrap()
+        .buildings;
+    let imagery = common::imagery::imagery_server().await;
+    let args = ServeArgs::parse_from([
+        "serve",
+        "--dem-dir",
+        common::dem_dir().to_str().unwrap(),
+        "--cache-db",
+        dir.path().join("c.sqlite").to_str().unwrap(),
+        "--osm",
+        osm.to_str().unwrap(),
+        "--roof-classifier",
+        "--imagery-url",
+        &format!("{imagery}/grey/{{z}}/{{x}}/{{y}}"),
+    ]);
+    let state = citymesh::server::build_state(&args).await.unwrap();
+    let app = citymesh::app(state.clone());
+
+    // counts.skipped counts the box's buildings only: exactly the tagged ones in it.
+    let small: GeoBbox = AREA.parse().unwrap();
+    let answer = common::post_json(&app, "/classify", serde_json::json!({ "bbox": AREA })).await;
+    assert_eq!(answer.status, StatusCode::ACCEPTED, "{}", answer.text());
+    let counts = &answer.json()["counts"];
+    assert_eq!(
+        counts["skipped"]["tagged"].as_u64(),
+        Some(tagged_in(&records, &small))
+    );
+    assert!(tagged_in(&records, &small) > 20);
+
+    // Cached tiles, in SQLite only.
+    let tiles: Vec<String> = (0..8)
+        .map(|i| format!("/tiles/17/{}/{}.glb", 68593 + i % 4, 44969 + i / 4))
+        .collect();
+    for t in &tiles {
+        assert_eq!(common::get(&app, t).await.status, StatusCode::OK, "{t}");
+    }
+    state.tiles.flush().await;
+    state.tiles.invalidate_memory();
+
+    // 16 batches over the whole district at once (thousands of upserts each), and tile reads
+    // meanwhile.
+    let district = "8.380,49.040,8.420,49.070";
+    let posts: Vec<_> = (0..16)
+        .map(|_| {
+            let app = app.clone();
+            tokio::spawn(async move {
+                common::post_json(&app, "/classify", serde_json::json!({ "bbox": district })).await
+            })
+        })
+        .collect();
+    let reads: Vec<_> = (0..8)
+        .map(|k| {
+            let (app, tiles) = (app.clone(), tiles.clone());
+            tokio::spawn(async move {
+                let mut out = Vec::new();
+                for round in 0..21 {
+                    let t = &tiles[(k + round) % tiles.len()];
+                    let started = std::time::Instant::now();
+                    let status = common::get(&app, t).await.status;
+                    out.push((status, started.elapsed()));
+                }
+                out
+            })
+        })
+        .collect();
+    let mut statuses: HashMap<u16, usize> = HashMap::new();
+    for p in posts {
+        let answer = p.await.unwrap();
+        *statuses.entry(answer.status.as_u16()).or_default() += 1;
+        if answer.status == StatusCode::SERVICE_UNAVAILABLE {
+            assert!(!answer.header("retry-after").is_empty());
+            assert_eq!(answer.json()["error"], "database_busy");
+        }
+    }
+    let mut latencies = Vec::new();
+    for r in reads {
+        for (status, took) in r.await.unwrap() {
+            assert_eq!(
+                status,
+                StatusCode::OK,
+                "a cached tile failed under write load"
+            );
+            latencies.push(took);
+        }
+    }
+    latencies.sort();
+    let p99 = latencies[latencies.len() * 99 / 100];
+    eprintln!(
+        "16 district batches at once: answers by status {statuses:?}; {} cached tile reads \
+         meanwhile, p99 {:.1} ms",
+        latencies.len(),
+        p99.as_secs_f64() * 1e3
+    );
+    assert_eq!(statuses.get(&500), None, "{statuses:?}");
+    assert_eq!(
+        statuses.get(&202).copied().unwrap_or(0) + statuses.get(&503).copied().unwrap_or(0),
+        16
+    );
+}

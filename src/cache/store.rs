@@ -1,5 +1,10 @@
 //! The SQLite level of the tile cache: generated content under typed keys, so it survives a
 //! restart, bounded in bytes: past the bound the least recently used tiles are evicted.
+//!
+//! A read only reads: which rows were used is noted in memory and written in one transaction
+//! off the request path (before an eviction, or when many are noted), so a cached tile never
+//! waits on, or fails because of, the database's writers. The notes are best-effort: a crash
+//! loses the order of recent use, never a tile.
 
 use super::key::{TileId, TileKey};
 use bytes::Bytes;
@@ -17,6 +22,11 @@ const EVICT_TO: f64 = 0.8;
 const ROW_OVERHEAD: i64 = 2_560;
 /// Tiles deleted per eviction statement.
 const EVICT_BATCH: i64 = 32;
+/// Uses noted before they are written (further ones start a write at once).
+const MAX_NOTED_USES: usize = 4_096;
+
+/// Rows read since the last write of their use, with when (ms).
+type NotedUses = std::collections::HashMap<(TileKey, String), i64>;
 
 /// A stored tile: its bytes and their ETag.
 #[derive(Debug, Clone)]
@@ -34,6 +44,7 @@ pub struct TileStore {
     used: Arc<AtomicU64>,
     /// One eviction at a time.
     evicting: Arc<tokio::sync::Mutex<()>>,
+    uses: Arc<std::sync::Mutex<NotedUses>>,
 }
 
 fn now_ms() -> i64 {
@@ -96,6 +107,7 @@ impl TileStore {
             max_bytes: u64::MAX,
             used: Arc::new(AtomicU64::new(0)),
             evicting: Arc::new(tokio::sync::Mutex::new(())),
+            uses: Arc::new(std::sync::Mutex::new(NotedUses::new())),
         }
     }
 
@@ -120,25 +132,67 @@ impl TileStore {
         self.used.load(Ordering::Relaxed)
     }
 
-    /// The stored tile, marked as just used.
+    /// The stored tile; its use is noted, and written later.
     pub async fn get(
         &self,
         key: &TileKey,
         data_version: &str,
     ) -> Result<Option<StoredTile>, sqlx::Error> {
         let query = sqlx::query(concat!(
-            "UPDATE generated_tiles SET last_used = ? WHERE ",
-            key_where!(),
-            " RETURNING bytes, etag"
-        ))
-        .bind(now_ms());
+            "SELECT bytes, etag FROM generated_tiles WHERE ",
+            key_where!()
+        ));
         let row = bind_key(query, key, data_version)
             .fetch_optional(&self.pool)
             .await?;
+        if row.is_some() {
+            self.note_use(key, data_version);
+        }
         Ok(row.map(|row| StoredTile {
             bytes: Bytes::from(row.get::<Vec<u8>, _>(0)),
             etag: row.get(1),
         }))
+    }
+
+    fn note_use(&self, key: &TileKey, data_version: &str) {
+        let full = {
+            let Ok(mut uses) = self.uses.lock() else {
+                return;
+            };
+            uses.insert((key.clone(), data_version.to_owned()), now_ms());
+            uses.len() >= MAX_NOTED_USES
+        };
+        if full {
+            let store = self.clone();
+            tokio::spawn(async move { store.write_uses().await });
+        }
+    }
+
+    /// Writes the noted uses in one transaction; on failure they are dropped (best-effort).
+    pub async fn write_uses(&self) {
+        let uses = match self.uses.lock() {
+            Ok(mut uses) => std::mem::take(&mut *uses),
+            Err(_) => return,
+        };
+        if uses.is_empty() {
+            return;
+        }
+        let result = async {
+            let mut tx = self.pool.begin_with("BEGIN IMMEDIATE").await?;
+            for ((key, data_version), at) in &uses {
+                let query = sqlx::query(concat!(
+                    "UPDATE generated_tiles SET last_used = MAX(last_used, ?) WHERE ",
+                    key_where!()
+                ))
+                .bind(*at);
+                bind_key(query, key, data_version).execute(&mut *tx).await?;
+            }
+            tx.commit().await
+        }
+        .await;
+        if let Err(e) = result {
+            tracing::debug!(uses = uses.len(), "tile uses not written: {e}");
+        }
     }
 
     pub async fn put(
@@ -189,6 +243,8 @@ impl TileStore {
             return Ok(());
         }
         let _one = self.evicting.lock().await;
+        // The order of use must be known before choosing what to evict.
+        self.write_uses().await;
         let target = (self.max_bytes as f64 * EVICT_TO) as u64;
         let mut evicted = 0u64;
         while self.used_bytes() > target {

@@ -175,7 +175,16 @@ impl TileCache {
             .try_get_with(key, async {
                 let epoch = self.epoch.load(Ordering::SeqCst);
                 started.store(epoch, Ordering::SeqCst);
-                if let Some(stored) = self.store.get(&key, &self.data_version).await? {
+                // The database is a cache: when it cannot answer, the tile is generated.
+                let stored = self
+                    .store
+                    .get(&key, &self.data_version)
+                    .await
+                    .unwrap_or_else(|e| {
+                        tracing::warn!("tile store read failed, generating instead: {e}");
+                        None
+                    });
+                if let Some(stored) = stored {
                     self.metrics.cache("memory", false);
                     self.metrics.cache("sqlite", true);
                     level.store(1, Ordering::Relaxed);

@@ -6,6 +6,22 @@ use sqlx::SqlitePool;
 use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, SqliteSynchronous};
 use std::str::FromStr;
 
+/// How long a statement waits for the write lock, and a request for a connection.
+const BUSY_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(5);
+
+/// Whether the database was too busy to answer in time (locked by writers, or every connection
+/// taken): worth trying again, never a 500.
+pub fn is_busy(e: &sqlx::Error) -> bool {
+    match e {
+        sqlx::Error::PoolTimedOut => true,
+        sqlx::Error::Database(d) => d.code().is_some_and(|code| {
+            // SQLITE_BUSY (5) and SQLITE_LOCKED (6), with their extended codes.
+            code.parse::<i32>().is_ok_and(|c| matches!(c & 0xff, 5 | 6))
+        }),
+        _ => false,
+    }
+}
+
 /// Opens (creating if needed) the database at `location` (a file path, or `:memory:`) and applies
 /// the migrations.
 pub async fn open(location: &str) -> anyhow::Result<SqlitePool> {
@@ -45,10 +61,15 @@ pub async fn open(location: &str) -> anyhow::Result<SqlitePool> {
             // process crashing (it is in the WAL file); only a power cut can lose the last few.
             // The database is a cache and a job queue whose jobs are retried, so that is fine.
             .synchronous(SqliteSynchronous::Normal)
+            // A writer waits this long for another's transaction to end, then the request gets a
+            // 503 (see `is_busy`). Writes are short (jobs are queued in chunks), so waiting is
+            // rare; readers never wait (WAL, and reads do not write).
+            .busy_timeout(BUSY_TIMEOUT)
     };
     // An in-memory database exists once per connection: keep exactly one.
     let pool = SqlitePoolOptions::new()
-        .max_connections(if memory { 1 } else { 4 })
+        .max_connections(if memory { 1 } else { 8 })
+        .acquire_timeout(BUSY_TIMEOUT)
         .min_connections(if memory { 1 } else { 0 })
         .idle_timeout(None)
         .max_lifetime(None)
@@ -62,4 +83,53 @@ pub async fn open(location: &str) -> anyhow::Result<SqlitePool> {
         })?;
     sqlx::migrate!("./migrations").run(&pool).await?;
     Ok(pool)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use sqlx::Connection;
+
+    #[tokio::test]
+    async fn a_write_that_waits_too_long_for_the_lock_is_busy_not_a_failure() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("c.sqlite");
+        let pool = open(path.to_str().unwrap()).await.unwrap();
+        // Another process holds the write lock.
+        let mut other = sqlx::SqliteConnection::connect_with(
+            &SqliteConnectOptions::new()
+                .filename(&path)
+                .busy_timeout(std::time::Duration::ZERO),
+        )
+        .await
+        .unwrap();
+        sqlx::query("BEGIN IMMEDIATE")
+            .execute(&mut other)
+            .await
+            .unwrap();
+        let mut impatient = sqlx::SqliteConnection::connect_with(
+            &SqliteConnectOptions::new()
+                .filename(&path)
+                .busy_timeout(std::time::Duration::from_millis(10)),
+        )
+        .await
+        .unwrap();
+        let e = sqlx::query("BEGIN IMMEDIATE")
+            .execute(&mut impatient)
+            .await
+            .unwrap_err();
+        assert!(is_busy(&e), "{e:?}");
+        assert!(!is_busy(&sqlx::Error::RowNotFound));
+        // A client is told to come back, never given a 500.
+        use axum::response::IntoResponse;
+        let answer = crate::error::AppError::from(crate::jobs::JobError::Store(e)).into_response();
+        assert_eq!(answer.status(), axum::http::StatusCode::SERVICE_UNAVAILABLE);
+        assert_eq!(answer.headers()["retry-after"], "2");
+        // Reads go on meanwhile.
+        let n: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM generated_tiles")
+            .fetch_one(&pool)
+            .await
+            .unwrap();
+        assert_eq!(n, 0);
+    }
 }

@@ -103,7 +103,7 @@ impl RoofJobQueue for SqliteJobQueue {
         // In chunks, each its own short transaction: a district's thousands of upserts never
         // hold the database's write lock long enough to starve other writers.
         for chunk in jobs.chunks(ENQUEUE_CHUNK) {
-            let mut tx = self.pool.begin().await?;
+            let mut tx = self.pool.begin_with("BEGIN IMMEDIATE").await?;
             for job in chunk {
                 let hash = footprint_hash(&job.footprint);
                 // A job that failed for good or was cancelled is queued again by a new batch.
@@ -215,7 +215,7 @@ impl RoofJobQueue for SqliteJobQueue {
         let [west, south, east, north] = ring_bounds(&job.footprint).unwrap_or([0.0; 4]);
         let now = now_ms();
         let p = prediction.probabilities;
-        let mut tx = self.pool.begin().await?;
+        let mut tx = self.pool.begin_with("BEGIN IMMEDIATE").await?;
         // Still this claim's job? (A claim whose lease ran out may have been taken over.)
         let ours = sqlx::query(
             "UPDATE roof_jobs SET state = 'done', lease_until = NULL, error = NULL, updated_at = ? \
@@ -327,7 +327,7 @@ impl RoofJobQueue for SqliteJobQueue {
     }
 
     async fn cancel(&self, token: &str) -> Result<Option<u64>, JobError> {
-        let mut tx = self.pool.begin().await?;
+        let mut tx = self.pool.begin_with("BEGIN IMMEDIATE").await?;
         let Some(batch) =
             sqlx::query("UPDATE roof_batches SET cancelled = 1 WHERE token = ? RETURNING id")
                 .bind(token)

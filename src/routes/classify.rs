@@ -15,6 +15,8 @@ use axum::extract::rejection::{JsonRejection, PathRejection, QueryRejection};
 use axum::extract::{Path, Query, State};
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
+use citymesh_core::building::cluster::record_bounds;
+use citymesh_core::osm::BuildingRecord;
 use citymesh_core::roof_image::RoofClass;
 use serde::{Deserialize, Serialize};
 use serde_json::json;
@@ -302,7 +304,18 @@ pub async fn post_classify(
         .osm_ids
         .as_ref()
         .map(|ids| ids.iter().map(String::as_str).collect());
-    let (candidates, mut skipped) = select_buildings(buildings.set.records(), selection);
+    // Only the buildings whose footprint's centre lies in the box count, skipped ones too.
+    let in_box: Vec<&BuildingRecord> = buildings
+        .set
+        .records()
+        .iter()
+        .map(AsRef::as_ref)
+        .filter(|r| {
+            let [w, s, e, n] = record_bounds(r);
+            bbox.contains((w + e) / 2.0, (s + n) / 2.0)
+        })
+        .collect();
+    let (candidates, mut skipped) = select_buildings(&in_box, selection);
     let mut jobs = Vec::new();
     for job in candidates {
         let Some(centre) = centre_of(&job.footprint) else {
@@ -331,7 +344,6 @@ pub async fn post_classify(
             ),
         ));
     }
-    // Skips of buildings outside the box say nothing about the request: counted only inside.
     skipped.retain(|_, n| *n > 0);
     let model_id = roofs.active().model_id.clone();
     let (id, counts) = roofs
