@@ -470,6 +470,26 @@ pub struct ServeArgs {
     #[arg(long, env = "CITYMESH_OVERPASS_MAX_CONCURRENT", default_value_t = 2)]
     pub overpass_max_concurrent: usize,
 
+    /// OSM data tiles one request may fetch from Overpass; a request that needs more fetches
+    /// that many, keeps them, and answers 503 (asking again goes further).
+    #[arg(
+        long,
+        env = "CITYMESH_OVERPASS_CALLS_PER_REQUEST",
+        default_value_t = 12
+    )]
+    pub overpass_calls_per_request: usize,
+
+    /// Overpass calls (retries included) all requests together may start in any minute; past
+    /// it, requests that need new data answer 503 with Retry-After.
+    #[arg(long, env = "CITYMESH_OVERPASS_CALLS_PER_MINUTE", default_value_t = 60)]
+    pub overpass_calls_per_minute: usize,
+
+    /// Bound of the OSM data fetched from Overpass and stored in SQLite, megabytes; the least
+    /// recently used data tiles are evicted past it (fetched again when needed). Imported data
+    /// is never evicted.
+    #[arg(long, env = "CITYMESH_OSM_STORE_MB", default_value_t = 1024)]
+    pub osm_store_mb: u64,
+
     /// Hours after which stored Overpass data is refreshed (served meanwhile). Imported data is
     /// never refreshed.
     #[arg(long, env = "CITYMESH_OSM_TTL_HOURS", default_value_t = 168.0)]

@@ -171,6 +171,11 @@ impl From<crate::upstream::OverpassError> for AppError {
                 retry_after_secs: retry_after
                     .map_or(UPSTREAM_RETRY_AFTER_SECS, |d| d.as_secs().max(1)),
             },
+            OverpassError::HeldBack { retry_after, .. } => AppError::Unavailable {
+                code: "upstream_held_back",
+                detail: format!("{e}; the data already fetched is kept"),
+                retry_after_secs: retry_after.as_secs().max(1),
+            },
             OverpassError::Timeout(_) | OverpassError::GatewayTimeout => {
                 AppError::UpstreamTimeout(e.to_string())
             }
@@ -188,6 +193,21 @@ impl From<crate::source::SourceError> for AppError {
             SourceError::Upstream(e) => e.into(),
             SourceError::AreaTooLarge { .. } => {
                 AppError::bad_request("bbox_too_large", e.to_string())
+            }
+            SourceError::CallBudget { .. } => AppError::Unavailable {
+                code: "upstream_budget",
+                detail: e.to_string(),
+                retry_after_secs: 1,
+            },
+            SourceError::StoreBusy(_) => {
+                tracing::warn!("{e}");
+                AppError::Unavailable {
+                    code: "database_busy",
+                    detail: "the cache database is busy with other writes; try again after the \
+                             Retry-After delay"
+                        .to_owned(),
+                    retry_after_secs: DATABASE_RETRY_AFTER_SECS,
+                }
             }
             other => AppError::internal(other),
         }

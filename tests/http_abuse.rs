@@ -101,14 +101,10 @@ async fn start_upstream(
 }
 
 async fn online(db: &tempfile::TempDir, url: &str, extra: &[&str]) -> axum::Router {
-    let mut args = vec![
-        "--overpass-url",
-        url,
-        "--overpass-retries",
-        "0",
-        "--overpass-timeout-s",
-        "5",
-    ];
+    let mut args = vec!["--overpass-url", url, "--overpass-timeout-s", "5"];
+    if !extra.contains(&"--overpass-retries") {
+        args.extend(["--overpass-retries", "0"]);
+    }
     args.extend_from_slice(extra);
     app_with(&dem_dir(), &db.path().join("c.sqlite"), &args).await
 }
@@ -273,17 +269,89 @@ async fn upstream_errors_name_no_url_cap_retry_after_and_tell_504s_apart() {
         "{detail}"
     );
 
-    *up.answer.lock().unwrap() = (429, vec![("retry-after".into(), "100000".into())], vec![]);
-    let a = get(&app, KIRCHFELD_TILE).await;
-    assert_eq!(a.status, StatusCode::SERVICE_UNAVAILABLE);
-    assert_eq!(a.header("retry-after"), "120");
-
     *up.answer.lock().unwrap() = (504, vec![], b"gateway timeout".to_vec());
     let a = get(&app, KIRCHFELD_TILE).await;
     assert_eq!(a.status, StatusCode::GATEWAY_TIMEOUT);
     let detail = a.json()["detail"].as_str().unwrap().to_owned();
     assert!(detail.contains("reported a gateway timeout"), "{detail}");
     assert!(!detail.contains("did not answer within"), "{detail}");
+
+    *up.answer.lock().unwrap() = (429, vec![("retry-after".into(), "100000".into())], vec![]);
+    let a = get(&app, KIRCHFELD_TILE).await;
+    assert_eq!(a.status, StatusCode::SERVICE_UNAVAILABLE);
+    assert_eq!(a.header("retry-after"), "120");
+}
+
+#[tokio::test]
+async fn d9_after_a_429_no_request_calls_upstream_until_its_delay_has_passed() {
+    let db = tempfile::tempdir().unwrap();
+    let (up, url) = start_upstream(429, &[("retry-after", "30")], vec![]).await;
+    // Retries allowed: a 429 is still asked once.
+    let app = online(&db, &url, &["--overpass-retries", "2"]).await;
+    let a = get(&app, KIRCHFELD_TILE).await;
+    assert_eq!(a.status, StatusCode::SERVICE_UNAVAILABLE);
+    assert_eq!(a.json()["error"], "upstream_busy");
+    let after_first = up.requests.load(Ordering::SeqCst);
+    assert_eq!(after_first, 1, "a 429 was retried within the request");
+    // Other places, other requests: answered at once, without a call.
+    for tile in ["/tiles/16/34290/22490.glb", "/tiles/16/34280/22480.glb"] {
+        let b = get(&app, tile).await;
+        assert_eq!(b.status, StatusCode::SERVICE_UNAVAILABLE);
+        assert_eq!(b.json()["error"], "upstream_held_back");
+        let wait: u64 = b.header("retry-after").parse().unwrap();
+        assert!((1..=30).contains(&wait), "{wait}");
+        assert!(b.json()["detail"].as_str().unwrap().contains("429"));
+    }
+    assert_eq!(up.requests.load(Ordering::SeqCst), after_first);
+}
+
+#[tokio::test]
+async fn d10_overpass_calls_are_bounded_per_request_and_per_minute() {
+    let db = tempfile::tempdir().unwrap();
+    let (up, url) = start_upstream(200, &[], dense_city(3)).await;
+    let app = online(&db, &url, &["--overpass-calls-per-request", "4"]).await;
+    // A zoom-12 tile needs more than 4 data tiles: each request fetches 4 more (and keeps them)
+    // and says so, until the last one has what it needs.
+    let tile = "/tiles/12/2143/1405.glb";
+    let mut calls = 0;
+    let mut asked = 0;
+    loop {
+        let a = get(&app, tile).await;
+        asked += 1;
+        let now = up.requests.load(Ordering::SeqCst);
+        assert!(now - calls <= 4, "one request made {} calls", now - calls);
+        calls = now;
+        if a.status == StatusCode::OK {
+            break;
+        }
+        assert_eq!(a.status, StatusCode::SERVICE_UNAVAILABLE, "{}", a.text());
+        assert_eq!(a.json()["error"], "upstream_budget");
+        assert_eq!(a.header("retry-after"), "1");
+        assert_eq!(now, 4 * asked);
+        assert!(asked < 20);
+    }
+    assert!(asked >= 3, "{asked} requests, {calls} calls");
+
+    // Three calls a minute for all requests together: the fourth is held back, and so is the
+    // next request's first.
+    let db = tempfile::tempdir().unwrap();
+    let (up, url) = start_upstream(200, &[], dense_city(3)).await;
+    let app = online(&db, &url, &["--overpass-calls-per-minute", "3"]).await;
+    let a = get(&app, tile).await;
+    assert_eq!(a.status, StatusCode::SERVICE_UNAVAILABLE, "{}", a.text());
+    assert_eq!(a.json()["error"], "upstream_held_back");
+    assert!(
+        a.json()["detail"]
+            .as_str()
+            .unwrap()
+            .contains("--overpass-calls-per-minute")
+    );
+    let wait: u64 = a.header("retry-after").parse().unwrap();
+    assert!((1..=60).contains(&wait), "{wait}");
+    assert_eq!(up.requests.load(Ordering::SeqCst), 3);
+    let b = get(&app, "/tiles/12/2150/1410.glb").await;
+    assert_eq!(b.status, StatusCode::SERVICE_UNAVAILABLE);
+    assert_eq!(up.requests.load(Ordering::SeqCst), 3);
 }
 
 #[tokio::test]
@@ -789,6 +857,8 @@ async fn d8_memory_caches_stay_under_the_budget_with_a_dense_upstream() {
         "0",
         "--memory-mb",
         &budget_mb.to_string(),
+        "--overpass-calls-per-minute",
+        "1000",
     ]);
     let state = citymesh::server::build_state(&args).await.unwrap();
     let app = common::app_of(state.clone());
@@ -839,4 +909,40 @@ async fn d8_memory_caches_stay_under_the_budget_with_a_dense_upstream() {
         )),
         "{metrics}"
     );
+}
+
+#[tokio::test]
+async fn d11_the_osm_store_keeps_fetched_data_under_its_bound() {
+    let db = tempfile::tempdir().unwrap();
+    let body = dense_city(20);
+    let (up, url) = start_upstream(200, &[], body.clone()).await;
+    let app = online(
+        &db,
+        &url,
+        &["--osm-store-mb", "1", "--overpass-calls-per-request", "36"],
+    )
+    .await;
+    for tile in ["/tiles/13/4287/2811.glb", "/tiles/13/4290/2815.glb"] {
+        let a = get(&app, tile).await;
+        assert_eq!(a.status, StatusCode::OK, "{}", a.text());
+    }
+    let fetched = up.requests.load(Ordering::SeqCst) as u64;
+    assert!(
+        fetched * body.len() as u64 > 2 << 20,
+        "the test must fetch more than the bound: {fetched} x {} bytes",
+        body.len()
+    );
+    let pool =
+        sqlx::SqlitePool::connect(&format!("sqlite:{}", db.path().join("c.sqlite").display()))
+            .await
+            .unwrap();
+    let (rows, bytes): (i64, i64) = sqlx::query_as(
+        "SELECT COUNT(*), COALESCE(SUM(length(body)), 0) FROM osm_data_tiles WHERE source = 'overpass'",
+    )
+    .fetch_one(&pool)
+    .await
+    .unwrap();
+    assert!(bytes <= 1 << 20, "{rows} data tiles, {bytes} bytes stored");
+    assert!((rows as u64) < fetched, "{rows} of {fetched} kept");
+    assert!(rows > 0);
 }

@@ -7,6 +7,7 @@
 //! loses the order of recent use, never a tile.
 
 use super::key::{TileId, TileKey};
+use crate::db::UseNotes;
 use bytes::Bytes;
 use citymesh_core::geo::GeoBbox;
 use sqlx::{Row, SqlitePool};
@@ -25,9 +26,6 @@ const EVICT_BATCH: i64 = 32;
 /// Uses noted before they are written (further ones start a write at once).
 const MAX_NOTED_USES: usize = 4_096;
 
-/// Rows read since the last write of their use, with when (ms).
-type NotedUses = std::collections::HashMap<(TileKey, String), i64>;
-
 /// A stored tile: its bytes and their ETag.
 #[derive(Debug, Clone)]
 pub struct StoredTile {
@@ -44,7 +42,8 @@ pub struct TileStore {
     used: Arc<AtomicU64>,
     /// One eviction at a time.
     evicting: Arc<tokio::sync::Mutex<()>>,
-    uses: Arc<std::sync::Mutex<NotedUses>>,
+    /// Rows read since their uses were last written.
+    uses: Arc<UseNotes<(TileKey, String)>>,
 }
 
 fn now_ms() -> i64 {
@@ -107,7 +106,7 @@ impl TileStore {
             max_bytes: u64::MAX,
             used: Arc::new(AtomicU64::new(0)),
             evicting: Arc::new(tokio::sync::Mutex::new(())),
-            uses: Arc::new(std::sync::Mutex::new(NotedUses::new())),
+            uses: Arc::new(UseNotes::new(MAX_NOTED_USES)),
         }
     }
 
@@ -155,14 +154,7 @@ impl TileStore {
     }
 
     fn note_use(&self, key: &TileKey, data_version: &str) {
-        let full = {
-            let Ok(mut uses) = self.uses.lock() else {
-                return;
-            };
-            uses.insert((key.clone(), data_version.to_owned()), now_ms());
-            uses.len() >= MAX_NOTED_USES
-        };
-        if full {
+        if self.uses.note((*key, data_version.to_owned()), now_ms()) {
             let store = self.clone();
             tokio::spawn(async move { store.write_uses().await });
         }
@@ -170,10 +162,7 @@ impl TileStore {
 
     /// Writes the noted uses in one transaction; on failure they are dropped (best-effort).
     pub async fn write_uses(&self) {
-        let uses = match self.uses.lock() {
-            Ok(mut uses) => std::mem::take(&mut *uses),
-            Err(_) => return,
-        };
+        let uses = self.uses.take();
         if uses.is_empty() {
             return;
         }

@@ -2,6 +2,10 @@
 //! start-up. Each table has its own small store type beside its user: generated tiles in
 //! `crate::cache` (`cache/store.rs`), OSM data tiles in `crate::source::data_tiles`.
 
+mod use_notes;
+
+pub use use_notes::UseNotes;
+
 use sqlx::SqlitePool;
 use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, SqliteSynchronous};
 use std::str::FromStr;

@@ -78,7 +78,7 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
     let memory = MemoryBudget::of_megabytes(args.memory_mb);
     let dem = tokio::task::spawn_blocking(move || DemStore::open(&dem_dir, memory.dem)).await?;
     let metrics = Arc::new(Metrics::default());
-    let store = OsmTileStore::new(pool.clone());
+    let store = OsmTileStore::bounded(pool.clone(), args.osm_store_mb.saturating_mul(1 << 20));
     // Nothing configured at all: a procedural city, so a fresh `cargo run` shows something.
     let demo = args.osm.is_empty()
         && args.overpass_url.is_none()
@@ -118,12 +118,14 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
                     backoff: Duration::from_secs(1),
                     max_concurrent: args.overpass_max_concurrent,
                     max_bytes: args.overpass_max_mb.saturating_mul(1 << 20),
+                    calls_per_minute: args.overpass_calls_per_minute,
                 })?))
             };
             DataTileSource::new(
                 store,
                 upstream,
                 (args.osm_ttl_hours * 3600.0) as i64,
+                args.overpass_calls_per_request,
                 DataTileMemory {
                     parsed_bytes: memory.osm_tiles,
                     set_bytes: memory.building_sets,

@@ -13,9 +13,20 @@ pub enum SourceError {
         "the area needs {tiles} OSM data tiles, more than {max} per request: request a smaller or squarer area, or tiles"
     )]
     AreaTooLarge { tiles: usize, max: usize },
+    /// The area needs more data tiles fetched than one request may fetch; the ones it fetched
+    /// are kept, so asking again goes further.
+    #[error(
+        "the area needs more OSM data tiles from upstream than one request may fetch \
+         (--overpass-calls-per-request {limit}); {limit} were fetched and kept: ask again to fetch \
+         the next ones"
+    )]
+    CallBudget { limit: usize },
     /// The data-tile store (SQLite) failed.
     #[error("OSM data store: {0}")]
     Store(String),
+    /// The data-tile store (SQLite) was too busy to answer in time.
+    #[error("OSM data store busy: {0}")]
+    StoreBusy(String),
     /// Stored data could not be parsed.
     #[error("stored OSM data unreadable: {0}")]
     Unreadable(String),
@@ -26,7 +37,11 @@ pub enum SourceError {
 
 impl From<sqlx::Error> for SourceError {
     fn from(e: sqlx::Error) -> Self {
-        SourceError::Store(e.to_string())
+        if crate::db::is_busy(&e) {
+            SourceError::StoreBusy(e.to_string())
+        } else {
+            SourceError::Store(e.to_string())
+        }
     }
 }
 

@@ -1,12 +1,16 @@
 //! The Overpass API client: asks for the `building` and `building:part` ways and relations of
-//! one box, with a timeout, retries with backoff on 429, 5xx and timeouts (honouring
-//! `Retry-After`), a descriptive User-Agent, and a cap on requests in flight. A response is only
-//! handed back when it is complete, valid Overpass JSON: a failed or truncated answer is never
-//! stored as data.
+//! one box, with a timeout, retries with backoff on 5xx and timeouts, a descriptive User-Agent,
+//! a cap on requests in flight and on calls per minute (all requests together). A 429 or 503
+//! is not retried: every call stops until its `Retry-After` has passed (60 s when it names
+//! none), across requests, and they answer 503 at once meanwhile. A response is only handed
+//! back when it is complete, valid Overpass JSON: a failed or truncated answer is never stored
+//! as data.
 
 use citymesh_core::geo::GeoBbox;
 use reqwest::StatusCode;
-use std::time::Duration;
+use std::collections::VecDeque;
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
 use tokio::sync::Semaphore;
 
 /// The public main instance.
@@ -17,6 +21,12 @@ const MAX_BACKOFF: Duration = Duration::from_secs(30);
 
 /// Longest `Retry-After` taken from upstream (and so passed on to clients).
 pub const MAX_RETRY_AFTER: Duration = Duration::from_secs(120);
+
+/// How long calls stop after a 429 or 503 that names no `Retry-After`.
+const DEFAULT_BACKOFF_AFTER_BUSY: Duration = Duration::from_secs(60);
+
+/// The window of `calls_per_minute`.
+const MINUTE: Duration = Duration::from_secs(60);
 
 /// How the client behaves.
 #[derive(Debug, Clone)]
@@ -33,6 +43,8 @@ pub struct OverpassConfig {
     pub max_concurrent: usize,
     /// Largest answer accepted, bytes.
     pub max_bytes: u64,
+    /// Calls (attempts, retries included) started in any minute at most, by all requests.
+    pub calls_per_minute: usize,
 }
 
 /// Why Overpass gave no data. Each maps to the status a client of citymesh sees.
@@ -43,6 +55,14 @@ pub enum OverpassError {
     Busy {
         status: u16,
         retry_after: Option<Duration>,
+    },
+    /// This server holds back its own calls: the calls of the last minute reached
+    /// `--overpass-calls-per-minute`, or upstream said 429/503 and its delay has not passed.
+    /// Answer 503 with the delay.
+    #[error("{reason}; try again in {} s", .retry_after.as_secs().max(1))]
+    HeldBack {
+        reason: String,
+        retry_after: Duration,
     },
     /// No complete answer in time: answer 504.
     #[error("the OpenStreetMap upstream did not answer within {} s", .0.as_secs_f64())]
@@ -64,6 +84,7 @@ impl OverpassError {
     pub fn kind(&self) -> &'static str {
         match self {
             OverpassError::Busy { .. } => "busy",
+            OverpassError::HeldBack { .. } => "held_back",
             OverpassError::Timeout(_) | OverpassError::GatewayTimeout => "timeout",
             OverpassError::TooLarge { .. } => "too_large",
             OverpassError::Bad(_) => "bad_response",
@@ -75,6 +96,10 @@ pub struct OverpassClient {
     http: reqwest::Client,
     config: OverpassConfig,
     permits: Semaphore,
+    /// When the calls of the last minute started.
+    recent_calls: Mutex<VecDeque<Instant>>,
+    /// No call before this instant (upstream said 429 or 503).
+    paused_until: Mutex<Option<Instant>>,
 }
 
 /// The Overpass QL query for the buildings of a box.
@@ -109,7 +134,55 @@ impl OverpassClient {
             http,
             permits: Semaphore::new(config.max_concurrent.max(1)),
             config,
+            recent_calls: Mutex::new(VecDeque::new()),
+            paused_until: Mutex::new(None),
         })
+    }
+
+    /// Takes a call from this minute's allowance, or says why not and for how long.
+    fn take_call(&self) -> Result<(), OverpassError> {
+        let now = Instant::now();
+        if let Ok(paused) = self.paused_until.lock()
+            && let Some(until) = *paused
+            && until > now
+        {
+            return Err(OverpassError::HeldBack {
+                reason: "the OpenStreetMap upstream asked this server to slow down (HTTP 429 or \
+                         503), so it makes no call until the delay it gave has passed"
+                    .to_owned(),
+                retry_after: until - now,
+            });
+        }
+        let Ok(mut recent) = self.recent_calls.lock() else {
+            return Ok(());
+        };
+        while recent
+            .front()
+            .is_some_and(|t| now.duration_since(*t) >= MINUTE)
+        {
+            recent.pop_front();
+        }
+        if recent.len() >= self.config.calls_per_minute {
+            let oldest = recent.front().copied().unwrap_or(now);
+            return Err(OverpassError::HeldBack {
+                reason: format!(
+                    "this server makes at most {} calls a minute to the OpenStreetMap upstream \
+                     (--overpass-calls-per-minute), and that many were made",
+                    self.config.calls_per_minute
+                ),
+                retry_after: MINUTE.saturating_sub(now.duration_since(oldest)),
+            });
+        }
+        recent.push_back(now);
+        Ok(())
+    }
+
+    /// Upstream said 429 or 503: no call until its delay has passed.
+    fn pause(&self, retry_after: Option<Duration>) {
+        let until = Instant::now() + retry_after.unwrap_or(DEFAULT_BACKOFF_AFTER_BUSY);
+        if let Ok(mut paused) = self.paused_until.lock() {
+            *paused = Some(paused.map_or(until, |p| p.max(until)));
+        }
     }
 
     /// The raw Overpass JSON of the buildings in `bbox`, checked to be complete.
@@ -125,28 +198,26 @@ impl OverpassClient {
                     .acquire()
                     .await
                     .map_err(|e| OverpassError::Bad(e.to_string()))?;
+                self.take_call()?;
                 self.once(url, &query).await
             };
             let error = match result {
                 Ok(body) => return Ok(body),
                 Err(e) => e,
             };
+            if let OverpassError::Busy { retry_after, .. } = &error {
+                // Not retried now: every request holds back until the delay has passed.
+                self.pause(*retry_after);
+                return Err(error);
+            }
             let retry = matches!(
                 error,
-                OverpassError::Busy { .. }
-                    | OverpassError::Timeout(_)
-                    | OverpassError::GatewayTimeout
+                OverpassError::Timeout(_) | OverpassError::GatewayTimeout
             ) || matches!(&error, OverpassError::Bad(m) if m.starts_with("HTTP 5"));
             if !retry || attempt >= self.config.retries {
                 return Err(error);
             }
-            let wait = match &error {
-                OverpassError::Busy {
-                    retry_after: Some(d),
-                    ..
-                } => (*d).min(MAX_BACKOFF),
-                _ => backoff.min(MAX_BACKOFF),
-            };
+            let wait = backoff.min(MAX_BACKOFF);
             tracing::warn!(%error, attempt, ?wait, "Overpass request failed; retrying");
             tokio::time::sleep(wait).await;
             backoff *= 2;

@@ -23,7 +23,7 @@ use citymesh_core::osm::{BuildingRecord, Repaired, Skipped, read_buildings};
 use data_tile::{MAX_DATA_TILES, affected_area, data_tiles_for};
 use futures_util::future::BoxFuture;
 use std::collections::HashSet;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use store::now_secs;
 use tokio::sync::broadcast;
@@ -67,6 +67,8 @@ pub struct DataTileSource {
     store: OsmTileStore,
     upstream: Option<Arc<OverpassClient>>,
     ttl_secs: i64,
+    /// Data tiles one request may fetch from upstream.
+    calls_per_request: usize,
     parsed: moka::future::Cache<TileCoord, Arc<ParsedDataTile>>,
     sets: moka::future::Cache<Vec<TileCoord>, Arc<BuildingSet>>,
     refreshing: Arc<Mutex<HashSet<TileCoord>>>,
@@ -89,6 +91,7 @@ impl DataTileSource {
         store: OsmTileStore,
         upstream: Option<Arc<OverpassClient>>,
         ttl_secs: i64,
+        calls_per_request: usize,
         memory: DataTileMemory,
         metrics: Arc<Metrics>,
     ) -> Arc<Self> {
@@ -96,6 +99,7 @@ impl DataTileSource {
             store,
             upstream,
             ttl_secs,
+            calls_per_request,
             parsed: moka::future::Cache::builder()
                 .max_capacity(memory.parsed_bytes)
                 .weigher(|_, p: &Arc<ParsedDataTile>| weight(p.byte_size()))
@@ -123,8 +127,30 @@ impl DataTileSource {
             });
         }
         let version = self.version.load(Ordering::SeqCst);
-        let parsed =
-            futures_util::future::try_join_all(keys.iter().map(|t| self.data_tile(*t))).await?;
+        // Every data tile's future runs to its end (a fetch is never dropped half-way because
+        // another failed), then the first failure is reported, upstream failures before the
+        // request's call budget.
+        let budget = AtomicUsize::new(self.calls_per_request);
+        let results =
+            futures_util::future::join_all(keys.iter().map(|t| self.data_tile(*t, &budget))).await;
+        let mut parsed = Vec::with_capacity(results.len());
+        let mut failure: Option<SourceError> = None;
+        for result in results {
+            match result {
+                Ok(p) => parsed.push(p),
+                Err(e) => {
+                    if failure
+                        .as_ref()
+                        .is_none_or(|f| matches!(f, SourceError::CallBudget { .. }))
+                    {
+                        failure = Some(e);
+                    }
+                }
+            }
+        }
+        if let Some(e) = failure {
+            return Err(e);
+        }
         let missing: Vec<String> = keys
             .iter()
             .zip(&parsed)
@@ -184,7 +210,11 @@ impl DataTileSource {
         })
     }
 
-    async fn data_tile(&self, t: TileCoord) -> Result<Arc<ParsedDataTile>, SourceError> {
+    async fn data_tile(
+        &self,
+        t: TileCoord,
+        budget: &AtomicUsize,
+    ) -> Result<Arc<ParsedDataTile>, SourceError> {
         let loaded = AtomicBool::new(false);
         let version = self.version.load(Ordering::SeqCst);
         let result = self
@@ -208,6 +238,14 @@ impl DataTileSource {
                         fetched_at: None,
                     }));
                 };
+                if budget
+                    .fetch_update(Ordering::SeqCst, Ordering::SeqCst, |b| b.checked_sub(1))
+                    .is_err()
+                {
+                    return Err(SourceError::CallBudget {
+                        limit: self.calls_per_request,
+                    });
+                }
                 let fetched = upstream.fetch_buildings(&t.bounds()).await;
                 self.metrics
                     .upstream
