@@ -946,3 +946,72 @@ async fn d11_the_osm_store_keeps_fetched_data_under_its_bound() {
     assert!((rows as u64) < fetched, "{rows} of {fetched} kept");
     assert!(rows > 0);
 }
+
+/// A square building about 440 x 330 m around 8.4 E, 49.0 N with `holes` small square
+/// courtyards on a grid.
+fn building_with_holes(holes: usize) -> Value {
+    let (w, s, e, n) = (8.397, 48.9985, 8.403, 49.0015);
+    let mut rings = vec![vec![[w, s], [e, s], [e, n], [w, n], [w, s]]];
+    let side = (holes as f64).sqrt().ceil() as usize;
+    for k in 0..holes {
+        let (i, j) = ((k % side) as f64, (k / side) as f64);
+        let x = w + (e - w) * (i + 0.3) / side as f64;
+        let y = s + (n - s) * (j + 0.3) / side as f64;
+        let (dx, dy) = ((e - w) * 0.4 / side as f64, (n - s) * 0.4 / side as f64);
+        // Clockwise, as courtyards are.
+        rings.push(vec![
+            [x, y],
+            [x, y + dy],
+            [x + dx, y + dy],
+            [x + dx, y],
+            [x, y],
+        ]);
+    }
+    json!({"type": "FeatureCollection", "features": [{"type": "Feature", "id": 7,
+        "properties": {"building": "yes", "height": 12},
+        "geometry": {"type": "Polygon", "coordinates": rings}}]})
+}
+
+#[tokio::test]
+async fn d12_a_polygon_with_thousands_of_holes_is_refused_before_any_work() {
+    let db = tempfile::tempdir().unwrap();
+    let app = demo_app(&db, &[]).await;
+    let post = |geojson: Value| {
+        Request::post("/scene.glb")
+            .header("content-type", "application/geo+json")
+            .body(Body::from(geojson.to_string()))
+            .unwrap()
+    };
+    let (status, _, body) = send(&app, post(building_with_holes(40_000))).await;
+    assert_eq!(status, StatusCode::PAYLOAD_TOO_LARGE, "{body}");
+    assert_eq!(body["error"], "too_large");
+    assert_eq!(body["feature"], 0);
+    assert!(
+        body["detail"].as_str().unwrap().contains("40000 holes")
+            && body["detail"].as_str().unwrap().contains("at most 256"),
+        "{body}"
+    );
+    // At the cap, the building is built, courtyards and all.
+    let started = std::time::Instant::now();
+    let response = app
+        .clone()
+        .oneshot(post(building_with_holes(256)))
+        .await
+        .unwrap();
+    assert_eq!(response.status(), StatusCode::OK);
+    let stats: Value = serde_json::from_str(
+        response.headers()["x-citymesh-buildings"]
+            .to_str()
+            .unwrap_or("{}"),
+    )
+    .unwrap_or(Value::Null);
+    let glb = response.into_body().collect().await.unwrap().to_bytes();
+    common::assert_valid_glb(&glb);
+    eprintln!(
+        "a building with 256 courtyards: {} triangles in {:.0} ms ({stats})",
+        common::glb_triangle_count(&glb),
+        started.elapsed().as_secs_f64() * 1e3
+    );
+    // Each courtyard adds its walls: 4 walls of 2 triangles at least.
+    assert!(common::glb_triangle_count(&glb) > 256 * 8);
+}

@@ -19,6 +19,15 @@ pub const MIN_AREA: f64 = 0.05;
 /// in the worst case.
 pub const MAX_RING_VERTICES: usize = 4_000;
 
+/// Most courtyards (holes) one footprint may have: checking holes against each other, and a
+/// point against the holes, grows with their number, so a building with more is refused
+/// (`too_many_holes`) and the rest of its scene renders. OpenStreetMap's most complex buildings
+/// have a few dozen.
+pub const MAX_HOLES: usize = 256;
+
+/// Most vertices one footprint may have, its outline and courtyards together.
+pub const MAX_FOOTPRINT_VERTICES: usize = 16_000;
+
 /// Rings up to this many vertices are checked pair by pair (cheaper than sorting for them).
 const SMALL_RING: usize = 48;
 
@@ -55,8 +64,12 @@ pub enum FootprintError {
     SelfIntersecting,
     #[error("a coordinate is not a finite number")]
     NotFinite,
-    #[error("a ring has more than {MAX_RING_VERTICES} vertices")]
+    #[error(
+        "a ring has more than {MAX_RING_VERTICES} vertices, or the footprint more than {MAX_FOOTPRINT_VERTICES}"
+    )]
     TooManyVertices,
+    #[error("the footprint has more than {MAX_HOLES} courtyards")]
+    TooManyHoles,
 }
 
 /// A cleaned footprint: the outer ring counter-clockwise, courtyards clockwise, in metres.
@@ -191,9 +204,14 @@ impl Footprint {
         {
             return Err(FootprintError::NotFinite);
         }
+        if holes.len() > MAX_HOLES {
+            return Err(FootprintError::TooManyHoles);
+        }
         if std::iter::once(&outer)
             .chain(&holes)
             .any(|r| r.points.len() > MAX_RING_VERTICES)
+            || outer.points.len() + holes.iter().map(|h| h.points.len()).sum::<usize>()
+                > MAX_FOOTPRINT_VERTICES
         {
             return Err(FootprintError::TooManyVertices);
         }
@@ -393,6 +411,35 @@ fn rings_touch(x: &FootprintRing, y: &FootprintRing) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_footprint_with_more_courtyards_than_the_cap_is_refused_whole() {
+        let outer = FootprintRing::from_points(vec![
+            [0.0, 0.0],
+            [400.0, 0.0],
+            [400.0, 400.0],
+            [0.0, 400.0],
+        ]);
+        let holes = |n: usize| -> Vec<FootprintRing> {
+            (0..n)
+                .map(|k| {
+                    let (x, y) = ((k % 20) as f64 * 20.0 + 2.0, (k / 20) as f64 * 20.0 + 2.0);
+                    FootprintRing::from_points(vec![
+                        [x, y],
+                        [x, y + 5.0],
+                        [x + 5.0, y + 5.0],
+                        [x + 5.0, y],
+                    ])
+                })
+                .collect()
+        };
+        let kept = Footprint::new(outer.clone(), holes(MAX_HOLES)).unwrap();
+        assert_eq!(kept.holes.len(), MAX_HOLES);
+        assert_eq!(
+            Footprint::new(outer, holes(MAX_HOLES + 1)),
+            Err(FootprintError::TooManyHoles)
+        );
+    }
 
     fn ring(points: &[[f64; 2]]) -> FootprintRing {
         FootprintRing::from_points(points.to_vec())

@@ -45,8 +45,23 @@ pub fn generate_cluster(
     mesh: &mut Mesh,
     stats: &mut BuildingStats,
 ) {
+    generate_cluster_until(records, ctx, mesh, stats, &|| false);
+}
+
+/// [`generate_cluster`], asking `stop` before each building and before meshing the group; when
+/// it says so the cluster is left unfinished (the caller drops the scene).
+pub fn generate_cluster_until(
+    records: &[&BuildingRecord],
+    ctx: &BuildingContext,
+    mesh: &mut Mesh,
+    stats: &mut BuildingStats,
+    stop: &(dyn Fn() -> bool + Sync),
+) {
     let mut prepared: Vec<Prepared> = Vec::with_capacity(records.len());
     for &record in records {
+        if stop() {
+            return;
+        }
         match prepare(record, ctx.frame) {
             Ok(p) => prepared.push(p),
             Err(e) => stats.skip(record.id, footprint_reason(e)),
@@ -71,6 +86,9 @@ pub fn generate_cluster(
     let mut roof_ids: Vec<OsmId> = Vec::new();
     let mut volumes: Vec<Volume> = Vec::new();
     for (i, p) in prepared.iter().enumerate() {
+        if stop() {
+            return;
+        }
         let parts: Vec<&Prepared> = (0..prepared.len())
             .filter(|&j| outline_of[j] == Some(i))
             .map(|j| &prepared[j])
@@ -151,6 +169,9 @@ pub fn generate_cluster(
             stats.generated_ids.push(p.record.id.to_string());
         }
     }
+    if stop() {
+        return;
+    }
     let (positions, triangles) = (mesh.positions.len(), mesh.triangles.len());
     let mut report = mesh_group(&volumes, &roofs, mesh);
     // A sloped roof over a courtyard can be cut so finely near its bends that the triangulation
@@ -200,6 +221,7 @@ fn footprint_reason(e: FootprintError) -> &'static str {
         FootprintError::SelfIntersecting => "self_intersecting",
         FootprintError::NotFinite => "not_finite",
         FootprintError::TooManyVertices => "too_many_nodes",
+        FootprintError::TooManyHoles => "too_many_holes",
     }
 }
 

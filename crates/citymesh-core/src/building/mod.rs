@@ -27,5 +27,5 @@ pub mod triangulate;
 pub mod walls;
 
 pub use cluster::clusters;
-pub use generate::{BuildingContext, generate_cluster};
+pub use generate::{BuildingContext, generate_cluster, generate_cluster_until};
 pub use stats::BuildingStats;

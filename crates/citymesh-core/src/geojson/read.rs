@@ -2,7 +2,9 @@
 //! shape, geometry types, closed and simple rings, coordinates in range, property values, and
 //! the size limits. Every error names the feature (by index) and the field, and says what to fix.
 
-use crate::building::footprint::{Footprint, FootprintError, FootprintRing};
+use crate::building::footprint::{
+    Footprint, FootprintError, FootprintRing, MAX_FOOTPRINT_VERTICES, MAX_HOLES,
+};
 use crate::building::roof::RoofShape;
 use crate::building::tags::{parse_colour, parse_direction, parse_length, parse_levels};
 use crate::geo::{GeoBbox, LocalFrame, MAX_MERCATOR_LAT};
@@ -211,6 +213,18 @@ fn read_feature(
         if rings.is_empty() {
             return Err(invalid(at, field, "has no ring"));
         }
+        if inners.len() + rings.len() - 1 > MAX_HOLES {
+            return Err(GeoJsonError {
+                kind: GeoJsonErrorKind::TooLarge,
+                feature: at,
+                field,
+                message: format!(
+                    "the building has {} holes; one building may have at most {MAX_HOLES}: \
+                     simplify it or split it into several features",
+                    inners.len() + rings.len() - 1
+                ),
+            });
+        }
         let mut parsed = Vec::with_capacity(rings.len());
         for (k, r) in rings.iter().enumerate() {
             let field = format!("{field}[{k}]");
@@ -230,6 +244,23 @@ fn read_feature(
             parsed.push((ring, field));
         }
         check_simple(i, &parsed)?;
+        let points = outers
+            .iter()
+            .chain(&inners)
+            .chain(parsed.iter().map(|(r, _)| r))
+            .map(|r: &Ring| r.nodes.len())
+            .sum::<usize>();
+        if points > MAX_FOOTPRINT_VERTICES {
+            return Err(GeoJsonError {
+                kind: GeoJsonErrorKind::TooLarge,
+                feature: at,
+                field: "geometry.coordinates".to_owned(),
+                message: format!(
+                    "the building has {points} positions; one building may have at most \
+                     {MAX_FOOTPRINT_VERTICES}: simplify it or split it into several features"
+                ),
+            });
+        }
         let mut it = parsed.into_iter().map(|(r, _)| r);
         outers.extend(it.next());
         inners.extend(it);

@@ -8,7 +8,7 @@ mod roof_choice;
 pub use request::{SceneArea, SceneOutput, SceneRequest};
 pub use roof_choice::RoofChoice;
 
-use crate::building::{BuildingContext, BuildingStats, generate_cluster};
+use crate::building::{BuildingContext, BuildingStats, generate_cluster_until};
 use crate::geo::{GeoBbox, LocalFrame};
 use crate::mesh::{EncodedGlb, Encoding, Mesh, Placement, encode_glb};
 use crate::osm::BuildingRecord;
@@ -188,13 +188,14 @@ fn build_groups(
             };
         }
         let start = mesh.triangles.len();
-        generate_cluster(cluster, ctx, mesh, &mut buildings);
+        generate_cluster_until(cluster, ctx, mesh, &mut buildings, stop);
         cluster_triangles.push(start..mesh.triangles.len());
     }
     GroupsBuilt {
         buildings,
         cluster_triangles,
-        complete: true,
+        // The last group may have stopped half way.
+        complete: !stop(),
     }
 }
 

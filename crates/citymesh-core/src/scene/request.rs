@@ -268,12 +268,18 @@ mod tests {
         let request = SceneArea::Given(city.bbox).request(&set).unwrap();
         let model = ElevationModel::default();
         assert!(request.generate_until(&model, &|| true).is_none());
-        // Asked once per group (and once before encoding): stopping half way gives nothing.
+        // Asked before each group, each building and each group's meshing: stopping half way
+        // gives nothing, and nothing more is asked once it has said stop.
         let asked = std::sync::atomic::AtomicUsize::new(0);
-        let half = request.groups.len() / 2;
+        let total = std::sync::atomic::AtomicUsize::new(0);
+        let count = || total.fetch_add(1, std::sync::atomic::Ordering::SeqCst) + 1 > usize::MAX;
+        assert!(request.generate_until(&model, &count).is_some());
+        let half = total.load(std::sync::atomic::Ordering::SeqCst) / 2;
+        assert!(half > request.groups.len() / 2, "{half}");
         let stop = || asked.fetch_add(1, std::sync::atomic::Ordering::SeqCst) + 1 > half;
         assert!(request.generate_until(&model, &stop).is_none());
-        assert_eq!(asked.load(std::sync::atomic::Ordering::SeqCst), half + 1);
+        // After the first "stop": the group's own check, the groups loop's, and the last one.
+        assert!(asked.load(std::sync::atomic::Ordering::SeqCst) <= half + 3);
         let whole = request.generate_until(&model, &|| false).unwrap();
         assert_eq!(whole.glb, request.generate(&model).glb);
     }
