@@ -6,6 +6,7 @@
 
 mod building;
 mod driver;
+mod http;
 mod targets;
 
 pub use building::decode_building;

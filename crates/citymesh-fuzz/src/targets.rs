@@ -10,7 +10,7 @@ use citymesh_core::geo::{GeoBbox, TileCoord, parse_wkt_polygon};
 use citymesh_core::geojson::{GeoJsonLimits, read_geojson};
 use citymesh_core::learn::SoftmaxRegression;
 use citymesh_core::osm::read_buildings;
-use citymesh_core::scene::Scene;
+use citymesh_core::scene::{Border, Scene};
 use citymesh_core::terrain::{ElevationModel, HgtTile};
 use std::sync::Arc;
 
@@ -32,8 +32,16 @@ const GEOJSON_SEED: &str = r#"{"type": "FeatureCollection", "bbox": [8.4, 49.0, 
  "geometry": {"type": "MultiPolygon", "coordinates": [[[[8.4006, 49.0005], [8.4009, 49.0005], [8.4009, 49.0008], [8.4006, 49.0008], [8.4006, 49.0005]],
  [[8.4007, 49.0006], [8.40075, 49.00065], [8.40072, 49.0007], [8.4007, 49.0006]]]]}}]}"#;
 
+/// A building with courtyards (three, each a small square).
+const HOLES_SEED: &str = r#"{"type": "FeatureCollection", "features": [{"type": "Feature", "id": 7,
+ "properties": {"building": "yes", "height": 12, "roof:shape": "hipped"},
+ "geometry": {"type": "Polygon", "coordinates": [[[8.4000, 49.0000], [8.4010, 49.0000], [8.4010, 49.0006], [8.4000, 49.0006], [8.4000, 49.0000]],
+ [[8.4001, 49.0001], [8.4001, 49.0002], [8.4002, 49.0002], [8.4002, 49.0001], [8.4001, 49.0001]],
+ [[8.4004, 49.0001], [8.4004, 49.0002], [8.4005, 49.0002], [8.4005, 49.0001], [8.4004, 49.0001]],
+ [[8.4007, 49.0003], [8.4007, 49.0004], [8.4008, 49.0004], [8.4008, 49.0003], [8.4007, 49.0003]]]}}]}"#;
+
 /// Every target.
-pub const TARGETS: [Target; 8] = [
+pub const TARGETS: [Target; 10] = [
     Target {
         name: "osm_pbf",
         run: osm,
@@ -57,6 +65,24 @@ pub const TARGETS: [Target; 8] = [
         run: geojson,
         seeds: &[],
         inline: &[GEOJSON_SEED],
+    },
+    Target {
+        name: "geojson_scene",
+        run: geojson_scene,
+        seeds: &[],
+        inline: &[HOLES_SEED, GEOJSON_SEED],
+    },
+    Target {
+        name: "http",
+        run: super::http::requests,
+        seeds: &[],
+        inline: &[
+            "\u{0}0123456789abcdef0123456789abcdef",
+            "\u{2}{\"bbox\": [8.4, 49.0, 8.401, 49.001]}",
+            "\u{2}{\"type\": \"FeatureCollection\", \"features\": [{\"type\": \"Feature\", \"properties\": {\"osm_id\": \"way/1\"}, \"geometry\": {\"type\": \"Point\", \"coordinates\": [8.4, 49.0]}}]}",
+            "\u{3}{\"bbox\": \"8.4,49.0,8.401,49.001\"}",
+            "\u{4}model/gltf-binary;q=0.5, application/json;q=0.9, */*;q=0.1",
+        ],
     },
     Target {
         name: "hgt",
@@ -113,6 +139,30 @@ fn geojson(bytes: &[u8]) {
         let set = BuildingSet::new(scene.records);
         let _ = set.groups();
     }
+}
+
+/// GeoJSON read and generated (courtyards and all) on flat ground: the mesh stays finite.
+fn geojson_scene(bytes: &[u8]) {
+    let limits = GeoJsonLimits {
+        max_features: 50,
+        max_vertices: 5_000,
+    };
+    let Ok(scene) = read_geojson(bytes, limits) else {
+        return;
+    };
+    let Some(bbox) = scene
+        .bbox
+        .or_else(|| GeoBbox::new(8.39, 48.99, 8.41, 49.01).ok())
+    else {
+        return;
+    };
+    let set = BuildingSet::new(scene.records);
+    let model = ElevationModel::default();
+    let built = Scene::new(&model, &bbox, &set.groups(), Border::Whole);
+    assert!(
+        built.mesh.positions.iter().flatten().all(|c| c.is_finite()),
+        "a non-finite position"
+    );
 }
 
 /// HGT bytes of any length; a tile of the right size (its samples taken from the input, cycled)
