@@ -788,3 +788,43 @@ async fn a_flood_of_district_batches_answers_no_500_and_cached_tiles_keep_being_
         16
     );
 }
+
+#[tokio::test]
+async fn post_classify_gathers_its_buildings_within_the_request_timeout() {
+    // An Overpass that takes 3 s to answer; requests may take 1 s.
+    async fn slow() -> &'static str {
+        tokio::time::sleep(Duration::from_secs(3)).await;
+        r#"{"elements": []}"#
+    }
+    let stub = axum::Router::new().route("/api/interpreter", axum::routing::post(slow));
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let overpass = format!("http://{}/api/interpreter", listener.local_addr().unwrap());
+    tokio::spawn(async move { axum::serve(listener, stub).await.unwrap() });
+    let imagery = common::imagery::imagery_server().await;
+    let dir = tempfile::tempdir().unwrap();
+    let args = ServeArgs::parse_from([
+        "serve",
+        "--dem-dir",
+        common::dem_dir().to_str().unwrap(),
+        "--cache-db",
+        dir.path().join("c.sqlite").to_str().unwrap(),
+        "--overpass-url",
+        &overpass,
+        "--request-timeout-s",
+        "1",
+        "--roof-classifier",
+        "--imagery-url",
+        &format!("{imagery}/grey/{{z}}/{{x}}/{{y}}"),
+    ]);
+    let state = citymesh::server::build_state(&args).await.unwrap();
+    let app = citymesh::app(state);
+    let answer = common::post_json(&app, "/classify", serde_json::json!({ "bbox": AREA })).await;
+    assert_eq!(
+        answer.status,
+        StatusCode::SERVICE_UNAVAILABLE,
+        "{}",
+        answer.text()
+    );
+    assert_eq!(answer.json()["error"], "timeout");
+    assert!(!answer.header("retry-after").is_empty());
+}

@@ -9,6 +9,7 @@
 
 use super::ClassifierError;
 use citymesh_core::roof_image::crop::{dominant_direction, min_rotated_rect};
+use citymesh_core::roof_image::png_metadata::{MAX_PNG_TEXT_BYTES, png_text_bytes};
 use citymesh_core::roof_image::{Crop, CropFrame, CropRule, Image};
 
 /// Largest image side accepted (pixels), and the most bytes the decoder may allocate.
@@ -23,6 +24,13 @@ struct Decoded {
 
 /// Decodes PNG or JPEG bytes within the side and allocation limits.
 fn decode(bytes: &[u8]) -> Result<Decoded, ClassifierError> {
+    let text = png_text_bytes(bytes);
+    if text > MAX_PNG_TEXT_BYTES {
+        return Err(ClassifierError::Input(format!(
+            "the PNG carries {text} bytes of text metadata, more than {MAX_PNG_TEXT_BYTES}: \
+             strip its metadata"
+        )));
+    }
     let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| ClassifierError::Input(e.to_string()))?;

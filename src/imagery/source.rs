@@ -10,6 +10,7 @@ use super::{ImageryError, ImagerySpec};
 use crate::metrics::{Metrics, ResultLabels};
 use citymesh_core::geo::{TileCoord, mercator_y};
 use citymesh_core::roof_image::Image;
+use citymesh_core::roof_image::png_metadata::{MAX_PNG_TEXT_BYTES, png_text_bytes};
 use std::sync::Arc;
 
 enum Backend {
@@ -157,6 +158,12 @@ pub fn decode(bytes: &[u8], size: u32) -> Result<Image, ImageryError> {
         expected: size,
         detail,
     };
+    let text = png_text_bytes(bytes);
+    if text > MAX_PNG_TEXT_BYTES {
+        return Err(bad(format!(
+            "a PNG with {text} bytes of text metadata (more than {MAX_PNG_TEXT_BYTES})"
+        )));
+    }
     let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| bad(e.to_string()))?;
@@ -205,6 +212,46 @@ fn degree_row(north: f64, south: f64, height: usize, lat: f64) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A 4 x 4 PNG, and the same with a zTXt chunk of `text` bytes (zeros deflated: it would
+    /// inflate to about a thousand times that) inserted after its header.
+    fn pngs(text: usize) -> (Vec<u8>, Vec<u8>) {
+        let mut plain = Vec::new();
+        image::RgbImage::from_pixel(4, 4, image::Rgb([200, 100, 50]))
+            .write_to(
+                &mut std::io::Cursor::new(&mut plain),
+                image::ImageFormat::Png,
+            )
+            .unwrap();
+        let mut data = b"Comment\0\0".to_vec();
+        let mut zeros = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::best());
+        while zeros.get_ref().len() < text {
+            std::io::Write::write_all(&mut zeros, &[0u8; 1 << 20]).unwrap();
+        }
+        data.extend(zeros.finish().unwrap());
+        let mut chunk = (data.len() as u32).to_be_bytes().to_vec();
+        let mut crc = flate2::Crc::new();
+        crc.update(b"zTXt");
+        crc.update(&data);
+        chunk.extend_from_slice(b"zTXt");
+        chunk.extend_from_slice(&data);
+        chunk.extend_from_slice(&crc.sum().to_be_bytes());
+        // Signature (8) and IHDR (25) first.
+        let mut with_text = plain[..33].to_vec();
+        with_text.extend(chunk);
+        with_text.extend_from_slice(&plain[33..]);
+        (plain, with_text)
+    }
+
+    #[test]
+    fn a_png_with_more_than_a_little_text_metadata_is_refused_before_decoding() {
+        let (plain, small) = pngs(100);
+        assert!(decode(&plain, 4).is_ok());
+        assert!(decode(&small, 4).is_ok());
+        let (_, bomb) = pngs(MAX_PNG_TEXT_BYTES + 1);
+        let e = decode(&bomb, 4).unwrap_err().to_string();
+        assert!(e.contains("text metadata"), "{e}");
+    }
 
     #[test]
     fn degree_rows_move_north_in_mercator() {

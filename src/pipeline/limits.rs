@@ -16,7 +16,7 @@ pub async fn within_timeout<T>(
         .map_err(|_| AppError::Unavailable {
             code: "timeout",
             detail: format!(
-                "generating this area took longer than {} s; try a smaller area or again later",
+                "gathering and generating this area took longer than {} s (--request-timeout-s); try a smaller area or again later",
                 limit.as_secs_f64()
             ),
             retry_after_secs: 5,

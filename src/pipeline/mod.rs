@@ -12,7 +12,7 @@ mod scene;
 mod tiles3d;
 
 pub use crate::generation_stats::GenerationStats;
-pub use limits::run_blocking;
+pub use limits::{run_blocking, within_timeout};
 pub use roofs::{ClassifiedRoofs, RoofFigures, RoofsParam, classified_roofs};
 pub use scene::{Buildings, Generated, generate};
 pub use tiles3d::{subtree, tileset_layout};

@@ -9,6 +9,7 @@ use crate::error::{AppError, ErrorBody};
 use crate::jobs::{
     BatchCounts, BatchProgress, RoofJobQueue, Selection, ring_bounds, select_buildings,
 };
+use crate::pipeline::within_timeout;
 use crate::state::AppState;
 use axum::Json;
 use axum::extract::rejection::{JsonRejection, PathRejection, QueryRejection};
@@ -294,7 +295,11 @@ pub async fn post_classify(
         return Err(classification_unavailable(why));
     }
     let bbox = parse_bbox(Some(&request.bbox.text()), &state.limits)?;
-    let buildings = state.source.buildings(&bbox).await?;
+    // Gathering the buildings may ask upstream: under the request timeout, as a scene is.
+    let buildings = within_timeout(&state, async {
+        Ok::<_, AppError>(state.source.buildings(&bbox).await?)
+    })
+    .await?;
     let selection = if request.include_tagged {
         Selection::All
     } else {

@@ -13,6 +13,7 @@ mod image;
 pub mod jpeg;
 pub mod mosaic;
 mod noise;
+pub mod png_metadata;
 pub mod render;
 pub mod synthetic;
 
