@@ -828,3 +828,52 @@ async fn post_classify_gathers_its_buildings_within_the_request_timeout() {
     assert_eq!(answer.json()["error"], "timeout");
     assert!(!answer.header("retry-after").is_empty());
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_round_on_slow_imagery_keeps_its_jobs_and_each_is_done_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let (osm, _) = stripped_kirchfeld(dir.path());
+    let imagery = common::imagery::imagery_server().await;
+    let args = ServeArgs::parse_from([
+        "serve",
+        "--dem-dir",
+        common::dem_dir().to_str().unwrap(),
+        "--cache-db",
+        dir.path().join("c.sqlite").to_str().unwrap(),
+        "--osm",
+        osm.to_str().unwrap(),
+        "--roof-classifier",
+        "--imagery-url",
+        &format!("{imagery}/slow/{{z}}/{{x}}/{{y}}"),
+    ]);
+    let state = citymesh::server::build_state(&args).await.unwrap();
+    let app = citymesh::app(state.clone());
+    let small = "8.3990,49.0540,8.4000,49.0550";
+    let created = common::post_json(&app, "/classify", serde_json::json!({ "bbox": small })).await;
+    assert_eq!(created.status, StatusCode::ACCEPTED, "{}", created.text());
+    let created = created.json();
+    let queued = created["counts"]["queued"].as_i64().unwrap();
+    assert!(queued >= 8, "{created}");
+    // Two workers; every imagery tile takes a second, longer than a lease: a round outlasts its
+    // lease unless the lease is extended, and the other worker would take its jobs.
+    state.roofs.spawn_workers(
+        2,
+        WorkerConfig {
+            claim: 64,
+            lease: Duration::from_millis(1500),
+            idle: Duration::from_millis(100),
+        },
+    );
+    let finished = wait_finished(&app, created["id"].as_str().unwrap()).await;
+    assert_eq!(
+        finished["jobs"]["done"].as_i64(),
+        Some(queued),
+        "{finished}"
+    );
+    let (_, predictions, attempts) = job_figures(&dir.path().join("c.sqlite")).await;
+    assert_eq!(predictions, queued);
+    assert_eq!(
+        attempts, queued,
+        "a job was claimed again while its round ran"
+    );
+}

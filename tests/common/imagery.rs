@@ -156,6 +156,12 @@ async fn grey() -> impl IntoResponse {
     )
 }
 
+/// A grey tile after a second: imagery as slow as an overloaded service.
+async fn slow_grey() -> impl IntoResponse {
+    tokio::time::sleep(std::time::Duration::from_secs(1)).await;
+    grey().await
+}
+
 /// Starts the imagery server; returns its base URL.
 pub async fn imagery_server() -> String {
     imagery_server_with_tiles().await.0
@@ -194,6 +200,7 @@ pub async fn imagery_server_with_tiles() -> (String, Arc<Orthophoto>) {
         .route("/wms", axum::routing::get(wms))
         .with_state(o.clone())
         .route("/grey/{z}/{x}/{y}", axum::routing::get(grey))
+        .route("/slow/{z}/{x}/{y}", axum::routing::get(slow_grey))
         .route("/{kind}/{z}/{x}/{y}", axum::routing::get(bad));
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
     let addr = listener.local_addr().unwrap();
