@@ -765,6 +765,30 @@ fn d7_silent_connections_trickled_bodies_reserved_slots_and_early_413() {
     assert!(!answer.contains("100 Continue"), "{answer}");
     assert!(answer.contains("\"error\":\"too_large\""), "{answer}");
 
+    // What hyper refuses before the router (a target of 65,535 bytes or more, over 1,000 header
+    // lines, not HTTP) gets the same JSON error body as everything else.
+    let raw = |request: Vec<u8>| {
+        let mut c = TcpStream::connect(&addr).unwrap();
+        c.write_all(&request).unwrap();
+        c.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+        let mut answer = Vec::new();
+        let _ = c.read_to_end(&mut answer);
+        String::from_utf8_lossy(&answer).into_owned()
+    };
+    let long = raw(format!("GET /{} HTTP/1.1\r\nHost: x\r\n\r\n", "a".repeat(70_000)).into_bytes());
+    assert!(long.starts_with("HTTP/1.1 414"), "{long}");
+    assert!(
+        long.ends_with("}") && long.contains("\"error\":\"uri_too_long\""),
+        "{long}"
+    );
+    let lines: String = (0..1_100).map(|i| format!("x-h{i}: 1\r\n")).collect();
+    let many = raw(format!("GET /health HTTP/1.1\r\n{lines}\r\n").into_bytes());
+    assert!(many.starts_with("HTTP/1.1 431"), "{many}");
+    assert!(many.contains("\"error\":\"headers_too_large\""), "{many}");
+    let garbage = raw(b"GARBAGE\r\n\r\n".to_vec());
+    assert!(garbage.starts_with("HTTP/1.1 400"), "{garbage}");
+    assert!(garbage.contains("\"error\":\"bad_request\""), "{garbage}");
+
     // Both general slots held by clients that send their headers slowly: /health still answers
     // on the reserved slot, and anything else there is a 503 that says why.
     let mut held = Vec::new();

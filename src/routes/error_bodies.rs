@@ -16,7 +16,8 @@ pub const MAX_HEADER_BYTES: usize = 32 * 1024;
 /// Most header lines accepted.
 pub const MAX_HEADER_COUNT: usize = 100;
 
-fn json_error(status: StatusCode, code: &str, detail: String) -> Response {
+/// An error answer with the JSON body.
+pub(super) fn json_error(status: StatusCode, code: &str, detail: String) -> Response {
     (
         status,
         Json(ErrorBody {

@@ -3,14 +3,13 @@
 //! a 100), and the whole body must arrive within `--body-timeout-s` of the headers, a total
 //! deadline however the bytes trickle in (408).
 
-use crate::error::ErrorBody;
+use super::error_bodies::json_error;
 use crate::state::AppState;
-use axum::Json;
 use axum::body::{Body, Bytes};
 use axum::extract::{Request, State};
 use axum::http::{Method, StatusCode, header};
 use axum::middleware::Next;
-use axum::response::{IntoResponse, Response};
+use axum::response::Response;
 use http_body::Frame;
 use std::pin::Pin;
 use std::sync::Arc;
@@ -32,19 +31,6 @@ fn body_limit(state: &AppState, method: &Method, path: &str) -> (usize, &'static
     }
 }
 
-fn refusal(status: StatusCode, code: &str, detail: String) -> Response {
-    (
-        status,
-        Json(ErrorBody {
-            error: code.to_owned(),
-            detail,
-            feature: None,
-            field: None,
-        }),
-    )
-        .into_response()
-}
-
 /// Refuses over-long declared bodies and puts the rest under the body deadline.
 pub async fn guard(State(state): State<AppState>, request: Request, next: Next) -> Response {
     let (limit, code) = body_limit(&state, request.method(), request.uri().path());
@@ -56,7 +42,7 @@ pub async fn guard(State(state): State<AppState>, request: Request, next: Next) 
     if let Some(length) = declared
         && length > limit as u64
     {
-        let mut answer = refusal(
+        let mut answer = json_error(
             StatusCode::PAYLOAD_TOO_LARGE,
             code,
             format!(
@@ -81,7 +67,7 @@ pub async fn guard(State(state): State<AppState>, request: Request, next: Next) 
     });
     let response = next.run(Request::from_parts(parts, body)).await;
     if expired.load(Ordering::Relaxed) {
-        let mut answer = refusal(
+        let mut answer = json_error(
             StatusCode::REQUEST_TIMEOUT,
             "timeout",
             format!(

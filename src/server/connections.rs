@@ -8,6 +8,7 @@
 //! time by the router (`--body-timeout-s`, a total deadline). On shutdown, requests in flight
 //! finish.
 
+use super::parse_errors;
 use axum::Router;
 use hyper_util::rt::{TokioExecutor, TokioIo, TokioTimer};
 use hyper_util::server::conn::auto::Builder;
@@ -163,6 +164,9 @@ pub async fn serve(
 /// plus the limit), so a busy connection does not touch the timer wheel on every read and write.
 struct IdleTimeout {
     inner: TcpStream,
+    /// A JSON answer written in place of one of hyper's empty ones (see `parse_errors`): its
+    /// bytes, how many are written, and the length hyper asked to write.
+    replacing: Option<(Vec<u8>, usize, usize)>,
     limit: Duration,
     /// The idle limit once the client has sent something.
     idle_limit: Duration,
@@ -175,6 +179,7 @@ impl IdleTimeout {
         let first = first_byte.min(idle);
         Self {
             inner,
+            replacing: None,
             limit: first,
             idle_limit: idle,
             last_traffic: Instant::now(),
@@ -227,12 +232,41 @@ impl AsyncRead for IdleTimeout {
     }
 }
 
+impl IdleTimeout {
+    /// Writes the JSON answer that replaces hyper's empty one; ready with the length hyper wrote.
+    fn poll_replacement(&mut self, cx: &mut Context<'_>) -> Poll<io::Result<usize>> {
+        while let Some((bytes, written, _)) = &mut self.replacing
+            && *written < bytes.len()
+        {
+            match Pin::new(&mut self.inner).poll_write(cx, &bytes[*written..]) {
+                Poll::Ready(Ok(0)) => return Poll::Ready(Ok(0)),
+                Poll::Ready(Ok(n)) => {
+                    *written += n;
+                    self.active();
+                }
+                Poll::Ready(Err(e)) => return Poll::Ready(Err(e)),
+                Poll::Pending => return self.waiting(cx).map(Err),
+            }
+        }
+        let asked = self.replacing.take().map_or(0, |(_, _, asked)| asked);
+        Poll::Ready(Ok(asked))
+    }
+}
+
 impl AsyncWrite for IdleTimeout {
     fn poll_write(
         mut self: Pin<&mut Self>,
         cx: &mut Context<'_>,
         data: &[u8],
     ) -> Poll<io::Result<usize>> {
+        if self.replacing.is_none()
+            && let Some(json) = parse_errors::json_answer(data)
+        {
+            self.replacing = Some((json, 0, data.len()));
+        }
+        if self.replacing.is_some() {
+            return self.poll_replacement(cx);
+        }
         match Pin::new(&mut self.inner).poll_write(cx, data) {
             Poll::Ready(result) => {
                 if matches!(result, Ok(n) if n > 0) {
@@ -249,6 +283,16 @@ impl AsyncWrite for IdleTimeout {
         cx: &mut Context<'_>,
         bufs: &[io::IoSlice<'_>],
     ) -> Poll<io::Result<usize>> {
+        // hyper's empty answers come whole, in the first buffer.
+        if self.replacing.is_none()
+            && let Some(first) = bufs.iter().find(|b| !b.is_empty())
+            && let Some(json) = parse_errors::json_answer(first)
+        {
+            self.replacing = Some((json, 0, first.len()));
+        }
+        if self.replacing.is_some() {
+            return self.poll_replacement(cx);
+        }
         match Pin::new(&mut self.inner).poll_write_vectored(cx, bufs) {
             Poll::Ready(result) => {
                 if matches!(result, Ok(n) if n > 0) {

@@ -3,6 +3,7 @@
 //! on SIGINT or SIGTERM.
 
 mod connections;
+mod parse_errors;
 
 pub use connections::ConnectionLimits;
 
