@@ -44,25 +44,37 @@ fn stripped_kirchfeld(dir: &Path) -> (PathBuf, HashMap<String, String>) {
 }
 
 /// The app over the stripped file with the classifier, imagery at `imagery_url` and one worker.
-async fn server(db: &Path, osm: &Path, imagery_url: &str) -> (axum::Router, AppState) {
+/// A state with the classifier and imagery at `imagery_url`, a database in `db`, and `extra`
+/// (where buildings come from, and more); no worker runs yet.
+async fn classifier_state(db: &Path, imagery_url: &str, extra: &[&str]) -> AppState {
     let dem = common::dem_dir();
-    let args = ServeArgs::parse_from([
-        "serve",
-        "--dem-dir",
-        dem.to_str().unwrap(),
-        "--cache-db",
-        db.join("c.sqlite").to_str().unwrap(),
+    let mut argv = vec![
+        "serve".to_owned(),
+        "--dem-dir".to_owned(),
+        dem.to_str().unwrap().to_owned(),
+        "--cache-db".to_owned(),
+        db.join("c.sqlite").to_str().unwrap().to_owned(),
+        "--roof-classifier".to_owned(),
+        "--imagery-url".to_owned(),
+        imagery_url.to_owned(),
+    ];
+    argv.extend(extra.iter().map(|a| (*a).to_owned()));
+    citymesh::server::build_state(&ServeArgs::parse_from(argv))
+        .await
+        .unwrap()
+}
+
+async fn server(db: &Path, osm: &Path, imagery_url: &str) -> (axum::Router, AppState) {
+    let osm = osm.to_str().unwrap();
+    let extra = [
         "--osm",
-        osm.to_str().unwrap(),
-        "--roof-classifier",
-        "--imagery-url",
-        imagery_url,
+        osm,
         "--imagery-id",
         "ortho",
         "--imagery-attribution",
         "rendered by citymesh",
-    ]);
-    let state = citymesh::server::build_state(&args).await.unwrap();
+    ];
+    let state = classifier_state(db, imagery_url, &extra).await;
     assert!(state.classifier.is_some(), "the classifier did not load");
     state.roofs.spawn_workers(1, WorkerConfig::default());
     (citymesh::app(state.clone()), state)
@@ -600,19 +612,8 @@ async fn a_job_two_batches_share_survives_the_deletion_of_one() {
     let dir = tempfile::tempdir().unwrap();
     let (osm, _) = stripped_kirchfeld(dir.path());
     let imagery = common::imagery::imagery_server().await;
-    let args = ServeArgs::parse_from([
-        "serve",
-        "--dem-dir",
-        common::dem_dir().to_str().unwrap(),
-        "--cache-db",
-        dir.path().join("c.sqlite").to_str().unwrap(),
-        "--osm",
-        osm.to_str().unwrap(),
-        "--roof-classifier",
-        "--imagery-url",
-        &format!("{imagery}/grey/{{z}}/{{x}}/{{y}}"),
-    ]);
-    let state = citymesh::server::build_state(&args).await.unwrap();
+    let imagery_url = format!("{imagery}/grey/{{z}}/{{x}}/{{y}}");
+    let state = classifier_state(dir.path(), &imagery_url, &["--osm", osm.to_str().unwrap()]).await;
     let app = citymesh::app(state.clone());
     // No worker yet: both batches stay queued. B asks for the same buildings as A.
     let small = "8.3990,49.0540,8.4000,49.0550";
@@ -692,19 +693,8 @@ async fn a_flood_of_district_batches_answers_no_500_and_cached_tiles_keep_being_
         .unwrap()
         .buildings;
     let imagery = common::imagery::imagery_server().await;
-    let args = ServeArgs::parse_from([
-        "serve",
-        "--dem-dir",
-        common::dem_dir().to_str().unwrap(),
-        "--cache-db",
-        dir.path().join("c.sqlite").to_str().unwrap(),
-        "--osm",
-        osm.to_str().unwrap(),
-        "--roof-classifier",
-        "--imagery-url",
-        &format!("{imagery}/grey/{{z}}/{{x}}/{{y}}"),
-    ]);
-    let state = citymesh::server::build_state(&args).await.unwrap();
+    let imagery_url = format!("{imagery}/grey/{{z}}/{{x}}/{{y}}");
+    let state = classifier_state(dir.path(), &imagery_url, &["--osm", osm.to_str().unwrap()]).await;
     let app = citymesh::app(state.clone());
 
     // counts.skipped counts the box's buildings only: exactly the tagged ones in it.
@@ -802,21 +792,13 @@ async fn post_classify_gathers_its_buildings_within_the_request_timeout() {
     tokio::spawn(async move { axum::serve(listener, stub).await.unwrap() });
     let imagery = common::imagery::imagery_server().await;
     let dir = tempfile::tempdir().unwrap();
-    let args = ServeArgs::parse_from([
-        "serve",
-        "--dem-dir",
-        common::dem_dir().to_str().unwrap(),
-        "--cache-db",
-        dir.path().join("c.sqlite").to_str().unwrap(),
-        "--overpass-url",
-        &overpass,
-        "--request-timeout-s",
-        "1",
-        "--roof-classifier",
-        "--imagery-url",
-        &format!("{imagery}/grey/{{z}}/{{x}}/{{y}}"),
-    ]);
-    let state = citymesh::server::build_state(&args).await.unwrap();
+    let imagery_url = format!("{imagery}/grey/{{z}}/{{x}}/{{y}}");
+    let state = classifier_state(
+        dir.path(),
+        &imagery_url,
+        &["--overpass-url", &overpass, "--request-timeout-s", "1"],
+    )
+    .await;
     let app = citymesh::app(state);
     let answer = common::post_json(&app, "/classify", serde_json::json!({ "bbox": AREA })).await;
     assert_eq!(
@@ -834,19 +816,8 @@ async fn a_round_on_slow_imagery_keeps_its_jobs_and_each_is_done_once() {
     let dir = tempfile::tempdir().unwrap();
     let (osm, _) = stripped_kirchfeld(dir.path());
     let imagery = common::imagery::imagery_server().await;
-    let args = ServeArgs::parse_from([
-        "serve",
-        "--dem-dir",
-        common::dem_dir().to_str().unwrap(),
-        "--cache-db",
-        dir.path().join("c.sqlite").to_str().unwrap(),
-        "--osm",
-        osm.to_str().unwrap(),
-        "--roof-classifier",
-        "--imagery-url",
-        &format!("{imagery}/slow/{{z}}/{{x}}/{{y}}"),
-    ]);
-    let state = citymesh::server::build_state(&args).await.unwrap();
+    let imagery_url = format!("{imagery}/slow/{{z}}/{{x}}/{{y}}");
+    let state = classifier_state(dir.path(), &imagery_url, &["--osm", osm.to_str().unwrap()]).await;
     let app = citymesh::app(state.clone());
     let small = "8.3990,49.0540,8.4000,49.0550";
     let created = common::post_json(&app, "/classify", serde_json::json!({ "bbox": small })).await;
