@@ -92,8 +92,8 @@ impl OsmTileStore {
         Ok(u64::try_from(used).unwrap_or(0))
     }
 
-    /// Writes the noted uses, then deletes the least recently used Overpass data tiles while
-    /// there are more bytes than the bound.
+    /// Writes the noted uses, then deletes the least recently used Overpass data tiles, one at a
+    /// time (each holds many buildings), while there are more bytes than the bound.
     async fn evict_if_over(&self) -> Result<(), sqlx::Error> {
         if self.max_bytes == u64::MAX {
             return Ok(());
@@ -120,7 +120,7 @@ impl OsmTileStore {
         while used > self.max_bytes {
             let sizes: Vec<i64> = sqlx::query(
                 "DELETE FROM osm_data_tiles WHERE rowid IN (SELECT rowid FROM osm_data_tiles \
-                 WHERE source = 'overpass' ORDER BY last_used LIMIT 8) RETURNING size",
+                 WHERE source = 'overpass' ORDER BY last_used, rowid LIMIT 1) RETURNING size",
             )
             .fetch_all(&self.pool)
             .await?
