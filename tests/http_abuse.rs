@@ -791,6 +791,9 @@ fn d7_silent_connections_trickled_bodies_reserved_slots_and_early_413() {
 
     // Both general slots held by clients that send their headers slowly: /health still answers
     // on the reserved slot, and anything else there is a 503 that says why.
+    // The connections above close on the server's side a moment after their answers: let them
+    // give their slots back first, so the two below take both general slots.
+    std::thread::sleep(Duration::from_secs(1));
     let mut held = Vec::new();
     for _ in 0..2 {
         let mut s = TcpStream::connect(&addr).unwrap();

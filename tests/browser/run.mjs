@@ -164,6 +164,31 @@ try {
     });
   }
 
+  await check('CesiumJS opens at the camera in the URL, keeps the camera in the URL, and credits OpenStreetMap', async () => {
+    const want = { lon: 8.3995, lat: 49.0525, height: 1200, heading: 30, pitch: -50 };
+    const c = await open(`${karlsruhe.url}/cesium?${new URLSearchParams(Object.entries(want).map(([k, v]) => [k, String(v)]))}`,
+      'window.citymeshCesium && (window.citymeshCesium.ready || window.citymeshCesium.errors.length)', 180000);
+    const s = await c.page.evaluate(() => window.citymeshCesium);
+    if (s.errors.length) throw new Error(s.errors.join('\n'));
+    if (c.problems.length) throw new Error(c.problems.join('\n'));
+    const got = s.camera;
+    const off = (k, tolerance) => Math.abs(got[k] - want[k]) > tolerance;
+    if (off('lon', 1e-6) || off('lat', 1e-6) || off('height', 0.5) || off('heading', 0.1) || off('pitch', 0.1)) {
+      throw new Error(`the camera is at ${JSON.stringify(got)}, not ${JSON.stringify(want)}`);
+    }
+    if (!(s.tilesLoaded > 0)) throw new Error('no tile loaded from the URL\'s camera');
+    const credits = await c.page.evaluate(() => document.querySelector('.cesium-widget-credits')?.textContent ?? '');
+    if (!credits.includes('OpenStreetMap')) throw new Error(`credits: ${credits}`);
+    // The user moves: the URL follows, so the view can be shared.
+    await c.page.evaluate(() => window.citymeshCesiumViewer.camera.setView({
+      destination: Cesium.Cartesian3.fromDegrees(8.401, 49.0531, 900) }));
+    await c.page.waitForFunction(() => new URLSearchParams(location.search).get('lon') === '8.401000', null, { timeout: 20000 });
+    const shared = new URL(c.page.url()).searchParams;
+    if (shared.get('lat') !== '49.053100' || Math.abs(Number(shared.get('height')) - 900) > 0.5) throw new Error(`URL: ${shared}`);
+    console.log(`  camera ${JSON.stringify(got)}; ${s.tilesLoaded} tiles; URL after moving: ?${shared}`);
+    await c.page.close();
+  });
+
   await check('viewer shows roofs classified by queued jobs (roofs=classified)', async () => {
     const server = await startServer('classifying', ['--dem-dir', `${data}/dem`, '--osm', `${data}/osm/karlsruhe-kirchfeld.osm.pbf`,
       '--roof-classifier', '--imagery-url', `${imagery.url}/{z}/{x}/{y}.png`, '--imagery-id', 'grey', '--classify-workers', '1']);
