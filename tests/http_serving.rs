@@ -160,7 +160,7 @@ async fn interpreter(
         Mode::ServerError => (StatusCode::INTERNAL_SERVER_ERROR, "boom").into_response(),
         Mode::TooManyRequests => (
             StatusCode::TOO_MANY_REQUESTS,
-            [(axum::http::header::RETRY_AFTER, "7")],
+            [(axum::http::header::RETRY_AFTER, "1")],
             "slow down",
         )
             .into_response(),
@@ -321,12 +321,6 @@ async fn upstream_failures_answer_clearly_store_nothing_and_recover() {
             "30",
         ),
         (
-            Mode::TooManyRequests,
-            StatusCode::SERVICE_UNAVAILABLE,
-            "upstream_busy",
-            "7",
-        ),
-        (
             Mode::Hang,
             StatusCode::GATEWAY_TIMEOUT,
             "upstream_timeout",
@@ -337,6 +331,13 @@ async fn upstream_failures_answer_clearly_store_nothing_and_recover() {
             StatusCode::BAD_GATEWAY,
             "upstream_failed",
             "30",
+        ),
+        // Last: after a 429 no call is made until its Retry-After has passed.
+        (
+            Mode::TooManyRequests,
+            StatusCode::SERVICE_UNAVAILABLE,
+            "upstream_busy",
+            "1",
         ),
     ] {
         stub.set(mode);
@@ -349,6 +350,13 @@ async fn upstream_failures_answer_clearly_store_nothing_and_recover() {
     // The stub counted one request per failure: nothing was cached as an answer.
     assert_eq!(stub.count(), 4);
     stub.set(Mode::Normal);
+    // Within the 429's delay: answered at once, without a call.
+    let held = get(&app, TILE).await;
+    assert_eq!(held.status, StatusCode::SERVICE_UNAVAILABLE);
+    assert_eq!(held.json()["error"], "upstream_held_back");
+    assert_eq!(stub.count(), 4);
+    // Past it, the data comes.
+    tokio::time::sleep(std::time::Duration::from_millis(1100)).await;
     let a = get(&app, TILE).await;
     assert_eq!(a.status, StatusCode::OK);
     assert_eq!(stored_data_tiles(&file).await, 1);
