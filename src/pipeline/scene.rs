@@ -42,8 +42,8 @@ pub enum Buildings {
 
 /// Generates an area as GLB bytes: gathers its buildings (which may ask upstream), then waits for
 /// a generation slot (503 when none frees up in time) and generates on the blocking pool. The
-/// whole takes at most `--request-timeout-s` (503 after that). 3D Tiles content that holds no
-/// building group is not generated: 404 `no_content`.
+/// whole takes at most `--request-timeout-s` (503 after that). 3D Tiles content without a
+/// building group is its ground alone.
 /// `roofs` gives shapes to buildings without a `roof:shape` tag (classified roofs); `encoding` is
 /// how the GLB stores vertices.
 pub async fn generate(
@@ -91,12 +91,6 @@ async fn generate_within(
             .with_encoding(encoding);
         if let Some(roofs) = &roofs {
             request = request.with_roofs(roofs);
-        }
-        if matches!(area, SceneArea::Implicit { .. }) && request.groups.is_empty() {
-            return Err(AppError::not_found(
-                "no_content",
-                "this tile has no content (see the subtree's availability)",
-            ));
         }
         // Whole buildings may reach past the box: their ground must be loaded too.
         let lookup = dem.lookup(&request.terrain_bbox());

@@ -21,17 +21,11 @@ pub async fn tileset_layout(state: &AppState, root: GeoBbox) -> Result<ImplicitL
     .await
 }
 
-/// The binary subtree at the root of the tree over `root` (the tree's only one): which tiles
-/// exist and which leaves hold content.
+/// The binary subtree at the root of the tree over `root` (the tree's only one): every tile
+/// exists, every leaf has content (ground where it holds no building).
 pub async fn subtree(state: &AppState, root: GeoBbox) -> Result<Vec<u8>, AppError> {
-    within_timeout(state, async {
-        let buildings = state.source.buildings(&root).await?;
-        run_blocking(state, move || {
-            let leaf = ImplicitLayout::leaf_level_of(&root);
-            let content = buildings.set.implicit_tiles_with_content(&root, leaf);
-            Ok(root_subtree(leaf, &content))
-        })
-        .await
+    run_blocking(state, move || {
+        Ok(root_subtree(ImplicitLayout::leaf_level_of(&root)))
     })
     .await
 }

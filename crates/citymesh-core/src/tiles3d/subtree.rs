@@ -5,7 +5,6 @@
 
 use crate::geo::{ImplicitTile, morton};
 use serde_json::{Value, json};
-use std::collections::BTreeSet;
 
 /// The header's magic, `subt` read as a little-endian u32.
 pub const SUBTREE_MAGIC: &[u8; 4] = b"subt";
@@ -30,17 +29,10 @@ fn availability(bits: &[bool]) -> Availability {
     Availability::Bits(bytes, count)
 }
 
-/// The one subtree of a tree whose content sits at `leaf_level`, in the leaves listed in
-/// `content` (`(x, y)`, e.g. from
-/// [`crate::building::set::BuildingSet::implicit_tiles_with_content`]): a tile exists when it is
-/// the root or holds a leaf with content.
-pub fn root_subtree(leaf_level: u8, content: &BTreeSet<(u32, u32)>) -> Vec<u8> {
-    let has_content = |t: ImplicitTile| {
-        let shift = leaf_level - t.level.min(leaf_level);
-        content
-            .iter()
-            .any(|&(x, y)| (x >> shift, y >> shift) == (t.x, t.y))
-    };
+/// The one subtree of a tree whose content sits at `leaf_level`: every tile exists and every
+/// leaf has content (its ground, with the buildings whose group's point it holds), so the ground
+/// has no notches where a leaf holds no building.
+pub fn root_subtree(leaf_level: u8) -> Vec<u8> {
     let root = ImplicitTile {
         level: 0,
         x: 0,
@@ -49,8 +41,8 @@ pub fn root_subtree(leaf_level: u8, content: &BTreeSet<(u32, u32)>) -> Vec<u8> {
     write_subtree(
         root,
         leaf_level + 1,
-        &|t| t.level == 0 || has_content(t),
-        &|t| t.level == leaf_level && content.contains(&(t.x, t.y)),
+        &|_| true,
+        &|t| t.level == leaf_level,
         &|_| false,
     )
 }
