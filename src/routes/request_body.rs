@@ -57,6 +57,10 @@ pub async fn guard(State(state): State<AppState>, request: Request, next: Next) 
         );
         return answer;
     }
+    // No body (most requests: tile and scene GETs): nothing to time.
+    if http_body::Body::is_end_stream(request.body()) {
+        return next.run(request).await;
+    }
     let timeout = state.limits.body_timeout;
     let expired = Arc::new(AtomicBool::new(false));
     let (parts, body) = request.into_parts();
