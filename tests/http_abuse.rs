@@ -109,6 +109,14 @@ async fn online(db: &tempfile::TempDir, url: &str, extra: &[&str]) -> axum::Rout
     app_with(&dem_dir(), &db.path().join("c.sqlite"), &args).await
 }
 
+/// `POST /scene.glb` with a GeoJSON body.
+fn post_scene(geojson: Value) -> Request<Body> {
+    Request::post("/scene.glb")
+        .header("content-type", "application/geo+json")
+        .body(Body::from(geojson.to_string()))
+        .unwrap()
+}
+
 const KIRCHFELD_TILE: &str = "/tiles/16/34297/22493.glb";
 
 #[tokio::test]
@@ -163,12 +171,6 @@ async fn d1_offline_headers_stay_short() {
 async fn d2_huge_and_crossing_rings_are_refused() {
     let db = tempfile::tempdir().unwrap();
     let app = demo_app(&db, &[]).await;
-    let post = |geojson: Value| {
-        Request::post("/scene.glb")
-            .header("content-type", "application/geo+json")
-            .body(Body::from(geojson.to_string()))
-            .unwrap()
-    };
     let ring = |n: usize, zigzag: bool| -> Vec<[f64; 2]> {
         let mut r: Vec<[f64; 2]> = (0..n)
             .map(|i| {
@@ -190,14 +192,14 @@ async fn d2_huge_and_crossing_rings_are_refused() {
             "geometry": {"type": "Polygon", "coordinates": [r]}}]})
     };
     // 30,000 vertices: over the cap per ring, refused without the quadratic check.
-    let (status, _, body) = send(&app, post(feature(ring(30_000, false)))).await;
+    let (status, _, body) = send(&app, post_scene(feature(ring(30_000, false)))).await;
     assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY, "{body}");
     assert!(
         body["detail"].as_str().unwrap().contains("4000 vertices"),
         "{body}"
     );
     // 3,000 vertices crossing itself: found by the sweep.
-    let (status, _, body) = send(&app, post(feature(ring(3_000, true)))).await;
+    let (status, _, body) = send(&app, post_scene(feature(ring(3_000, true)))).await;
     assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY, "{body}");
     assert!(
         body["detail"].as_str().unwrap().contains("crosses itself"),
@@ -206,7 +208,7 @@ async fn d2_huge_and_crossing_rings_are_refused() {
     // The same ring without the swap is a valid building.
     let ok = app
         .clone()
-        .oneshot(post(feature(ring(3_000, false))))
+        .oneshot(post_scene(feature(ring(3_000, false))))
         .await
         .unwrap();
     assert_eq!(ok.status(), StatusCode::OK);
@@ -802,15 +804,7 @@ fn d7_silent_connections_trickled_bodies_reserved_slots_and_early_413() {
     }
     std::thread::sleep(Duration::from_millis(300));
     let ask = |path: &str| {
-        let mut c = TcpStream::connect(&addr).unwrap();
-        c.write_all(
-            format!("GET {path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n").as_bytes(),
-        )
-        .unwrap();
-        c.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
-        let mut answer = Vec::new();
-        let _ = c.read_to_end(&mut answer);
-        String::from_utf8_lossy(&answer).into_owned()
+        raw(format!("GET {path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n").into_bytes())
     };
     let health = ask("/health");
     assert!(health.starts_with("HTTP/1.1 200"), "{health}");
@@ -1003,13 +997,7 @@ fn building_with_holes(holes: usize) -> Value {
 async fn d12_a_polygon_with_thousands_of_holes_is_refused_before_any_work() {
     let db = tempfile::tempdir().unwrap();
     let app = demo_app(&db, &[]).await;
-    let post = |geojson: Value| {
-        Request::post("/scene.glb")
-            .header("content-type", "application/geo+json")
-            .body(Body::from(geojson.to_string()))
-            .unwrap()
-    };
-    let (status, _, body) = send(&app, post(building_with_holes(40_000))).await;
+    let (status, _, body) = send(&app, post_scene(building_with_holes(40_000))).await;
     assert_eq!(status, StatusCode::PAYLOAD_TOO_LARGE, "{body}");
     assert_eq!(body["error"], "too_large");
     assert_eq!(body["feature"], 0);
@@ -1022,7 +1010,7 @@ async fn d12_a_polygon_with_thousands_of_holes_is_refused_before_any_work() {
     let started = std::time::Instant::now();
     let response = app
         .clone()
-        .oneshot(post(building_with_holes(256)))
+        .oneshot(post_scene(building_with_holes(256)))
         .await
         .unwrap();
     assert_eq!(response.status(), StatusCode::OK);
