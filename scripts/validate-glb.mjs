@@ -16,7 +16,7 @@ try {
 let failed = false;
 for (const file of process.argv.slice(2)) {
   const bytes = new Uint8Array(await readFile(file));
-  const report = await validator.validateBytes(bytes, { maxIssues: 50 });
+  const report = await validator.validateBytes(bytes, { maxIssues: 200 });
   const { numErrors, numWarnings, numInfos, numHints, messages } = report.issues;
   console.log(JSON.stringify({
     file, errors: numErrors, warnings: numWarnings, infos: numInfos, hints: numHints,

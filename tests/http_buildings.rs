@@ -202,3 +202,47 @@ async fn a_file_that_is_not_osm_stops_start_up_with_a_clear_message() {
         "{text}"
     );
 }
+
+/// The row of `way` in a GLB's property table.
+fn row_of(glb: &[u8], way: &str) -> serde_json::Map<String, serde_json::Value> {
+    common::decode::feature_rows(glb)
+        .into_iter()
+        .find(|r| r["osm_type"] == "way" && r["osm_id"] == way)
+        .unwrap_or_else(|| panic!("no row for way/{way}"))
+}
+
+#[tokio::test]
+async fn a_building_carries_its_osm_identity_and_tags_in_every_kind_of_glb() {
+    let db = tempfile::tempdir().unwrap();
+    let app = kirchfeld_app(&db).await;
+    // The PLAZA INN hotel (way 142104398): 4 levels of 3 m, a flat roof of grass.
+    let want: serde_json::Map<String, serde_json::Value> = serde_json::json!({
+        "osm_type": "way", "osm_id": "142104398", "building": "hotel",
+        "name": "PLAZA INN Karlsruhe Nord", "address": "An der Vogelhardt 10, 76149 Karlsruhe",
+        "height": "12", "min_height": "0", "levels": "4", "roof_shape": "flat",
+        "roof_source": "tag", "roof_probability": "-1", "wall_colour": "#e8e0d0",
+        "roof_colour": "#6a8a48",
+    })
+    .as_object()
+    .unwrap()
+    .clone();
+    let (lon, lat) = (8.39366, 49.04397);
+    let z = 16u8;
+    let tile = TileCoord::containing(z, lon, lat);
+    let uris = [
+        format!("/tiles/{z}/{}/{}.glb", tile.x, tile.y),
+        format!("/tiles/{z}/{}/{}.glb?encoding=meshopt", tile.x, tile.y),
+        "/scene.glb?bbox=8.3930,49.0433,8.3943,49.0446".to_owned(),
+    ];
+    for uri in uris {
+        let answer = get(&app, &uri).await;
+        assert_eq!(answer.status, StatusCode::OK, "{uri}");
+        let row = row_of(&answer.body, "142104398");
+        // roof_probability is left out when no building in the file was classified.
+        let mut expected = want.clone();
+        if !row.contains_key("roof_probability") {
+            expected.remove("roof_probability");
+        }
+        assert_eq!(row, expected, "{uri}");
+    }
+}

@@ -106,7 +106,7 @@ pub async fn classified_roofs(
                     digest.update(id.as_bytes());
                     if p.confidence() >= jobs.threshold {
                         let class: RoofClass = p.class();
-                        choice.insert(record.id, class.shape());
+                        choice.insert(record.id, class.shape(), p.confidence());
                         figures.classified += 1;
                         digest.update(class.name().as_bytes());
                     } else {

@@ -31,6 +31,17 @@ pub fn decode_meshopt(glb: &[u8]) -> Vec<u8> {
     let mut out = vec![0u8; fallback as usize];
     for view in json["bufferViews"].as_array_mut().unwrap() {
         let ext = view["extensions"]["EXT_meshopt_compression"].clone();
+        if ext.is_null() {
+            // Not compressed (property tables): its bytes move along into the one buffer.
+            let at = view["byteOffset"].as_u64().unwrap() as usize;
+            let bytes = &bin[at..at + view["byteLength"].as_u64().unwrap() as usize];
+            while !out.len().is_multiple_of(8) {
+                out.push(0);
+            }
+            view["byteOffset"] = out.len().into();
+            out.extend_from_slice(bytes);
+            continue;
+        }
         let src = &bin[ext["byteOffset"].as_u64().unwrap() as usize..]
             [..ext["byteLength"].as_u64().unwrap() as usize];
         let (count, stride) = (
@@ -62,15 +73,17 @@ pub fn decode_meshopt(glb: &[u8]) -> Vec<u8> {
         view.as_object_mut().unwrap().remove("extensions");
     }
     json["buffers"] = serde_json::json!([{"byteLength": out.len()}]);
-    let used: Vec<Value> = json["extensionsUsed"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter(|e| *e != "EXT_meshopt_compression")
-        .cloned()
-        .collect();
-    json["extensionsUsed"] = used.clone().into();
-    json["extensionsRequired"] = used.into();
+    let without = |list: &Value| -> Value {
+        list.as_array()
+            .unwrap()
+            .iter()
+            .filter(|e| *e != "EXT_meshopt_compression")
+            .cloned()
+            .collect::<Vec<Value>>()
+            .into()
+    };
+    json["extensionsUsed"] = without(&json["extensionsUsed"]);
+    json["extensionsRequired"] = without(&json["extensionsRequired"]);
     glb_of(&json, &out)
 }
 
@@ -107,6 +120,8 @@ pub struct Triangle {
     pub raw: [[f64; 3]; 3],
     pub colour: [u8; 4],
     pub material: String,
+    /// The feature id its corners carry (`_FEATURE_ID_0`; all three the same), if any.
+    pub feature: Option<u32>,
 }
 
 /// Every triangle of a GLB in any encoding (meshopt decoded first).
@@ -131,6 +146,7 @@ pub fn triangles(glb: &[u8]) -> Vec<Triangle> {
         let positions = read(prim["attributes"]["POSITION"].as_u64().unwrap());
         let colours = read(prim["attributes"]["COLOR_0"].as_u64().unwrap());
         let indices = read(prim["indices"].as_u64().unwrap());
+        let features = prim["attributes"]["_FEATURE_ID_0"].as_u64().map(read);
         let material = json["materials"][prim["material"].as_u64().unwrap() as usize]["name"]
             .as_str()
             .unwrap()
@@ -141,11 +157,20 @@ pub fn triangles(glb: &[u8]) -> Vec<Triangle> {
                 [p[0], p[1], p[2]]
             });
             let c = &colours[t[0][0] as usize];
+            let feature = features.as_ref().map(|f| {
+                let [a, b, c] = [0, 1, 2].map(|k| f[t[k][0] as usize][0] as u32);
+                assert!(
+                    a == b && b == c,
+                    "a triangle's corners name features {a}, {b}, {c}"
+                );
+                a
+            });
             out.push(Triangle {
                 corners: raw.map(apply),
                 raw,
                 colour: [0, 1, 2, 3].map(|k| (c[k] * 255.0).round() as u8),
                 material: material.clone(),
+                feature,
             });
         }
     }
@@ -200,4 +225,98 @@ fn read_accessor(json: &Value, bin: &[u8], index: usize) -> Vec<Vec<f64>> {
                 .collect()
         })
         .collect()
+}
+
+/// Checks a GLB's feature metadata the way a client reads it (the Khronos validator cannot look
+/// inside `EXT_mesh_features` and `EXT_structural_metadata`): every feature id names a row or
+/// is the declared null id, every building primitive has ids and the ground none, and every
+/// property's views hold exactly `count` values (string offsets rising, the last one the end
+/// of the strings). Returns the rows, with each property's values as text.
+pub fn feature_rows(glb: &[u8]) -> Vec<serde_json::Map<String, Value>> {
+    let (json, bin) = chunks(&decode_meshopt(glb));
+    let Some(meta) = json["extensions"].get("EXT_structural_metadata") else {
+        return Vec::new();
+    };
+    let table = &meta["propertyTables"][0];
+    let count = table["count"].as_u64().unwrap() as usize;
+    let class = &meta["schema"]["classes"][table["class"].as_str().unwrap()]["properties"];
+    for prim in json["meshes"][0]["primitives"].as_array().unwrap() {
+        let material = json["materials"][prim["material"].as_u64().unwrap() as usize]["name"]
+            .as_str()
+            .unwrap();
+        let ids = &prim["extensions"]["EXT_mesh_features"]["featureIds"][0];
+        let Some(accessor) = prim["attributes"]["_FEATURE_ID_0"].as_u64() else {
+            assert_eq!(
+                material, "ground",
+                "a {material} primitive without feature ids"
+            );
+            continue;
+        };
+        assert_ne!(material, "ground");
+        assert_eq!(ids["featureCount"].as_u64().unwrap() as usize, count);
+        assert_eq!(ids["attribute"], 0);
+        let null = ids["nullFeatureId"].as_u64();
+        for v in read_accessor(&json, &bin, accessor as usize) {
+            let id = v[0];
+            assert_eq!(id.fract(), 0.0);
+            assert!(
+                (id as usize) < count || Some(id as u64) == null,
+                "feature id {id} of {count}"
+            );
+        }
+    }
+    let view = |k: &Value| -> &[u8] {
+        let v = &json["bufferViews"][k.as_u64().unwrap() as usize];
+        assert_eq!(v["buffer"], 0);
+        let at = v["byteOffset"].as_u64().unwrap_or(0) as usize;
+        assert_eq!(at % 8, 0, "property views start at a multiple of 8");
+        &bin[at..at + v["byteLength"].as_u64().unwrap() as usize]
+    };
+    let mut rows = vec![serde_json::Map::new(); count];
+    for (name, p) in table["properties"].as_object().unwrap() {
+        let def = &class[name];
+        let values = view(&p["values"]);
+        let texts: Vec<String> =
+            match (def["type"].as_str().unwrap(), def["componentType"].as_str()) {
+                ("STRING", _) => {
+                    let wide = p["stringOffsetType"] == "UINT32";
+                    let raw = view(&p["stringOffsets"]);
+                    let offsets: Vec<usize> = if wide {
+                        raw.chunks_exact(4)
+                            .map(|c| u32::from_le_bytes(c.try_into().unwrap()) as usize)
+                            .collect()
+                    } else {
+                        raw.chunks_exact(2)
+                            .map(|c| usize::from(u16::from_le_bytes(c.try_into().unwrap())))
+                            .collect()
+                    };
+                    assert_eq!(offsets.len(), count + 1, "{name}");
+                    assert_eq!(offsets[count], values.len(), "{name}");
+                    assert!(offsets.windows(2).all(|w| w[0] <= w[1]), "{name}");
+                    offsets
+                        .windows(2)
+                        .map(|w| String::from_utf8(values[w[0]..w[1]].to_vec()).unwrap())
+                        .collect()
+                }
+                ("SCALAR", Some("FLOAT32")) => {
+                    assert_eq!(values.len(), 4 * count, "{name}");
+                    values
+                        .chunks_exact(4)
+                        .map(|c| f32::from_le_bytes(c.try_into().unwrap()).to_string())
+                        .collect()
+                }
+                ("SCALAR", Some("INT64")) => {
+                    assert_eq!(values.len(), 8 * count, "{name}");
+                    values
+                        .chunks_exact(8)
+                        .map(|c| i64::from_le_bytes(c.try_into().unwrap()).to_string())
+                        .collect()
+                }
+                other => panic!("property {name} of type {other:?}"),
+            };
+        for (row, text) in rows.iter_mut().zip(texts) {
+            row.insert(name.clone(), Value::String(text));
+        }
+    }
+    rows
 }

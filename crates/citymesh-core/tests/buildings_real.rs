@@ -143,7 +143,15 @@ fn pbf_and_overpass_json_give_the_same_mesh() {
         Scene::new(&model, &bbox, &set.groups(), Border::Whole)
     };
     let (a, b) = (scene(&pbf), scene(&json));
-    assert_eq!(a.buildings, b.buildings);
+    // The same figures and features; heights from a roof's run agree to well under a millimetre.
+    let rounded = |s: &Scene| {
+        let mut stats = s.buildings.clone();
+        for f in &mut stats.features {
+            f.height = (f.height * 1e4).round() / 1e4;
+        }
+        stats
+    };
+    assert_eq!(rounded(&a), rounded(&b));
     assert_eq!(a.mesh.triangles.len(), b.mesh.triangles.len());
     // The same corners (to a millimetre) and the same area per material: the triangulations of
     // co-circular points may pick other diagonals.

@@ -312,6 +312,7 @@ fn roof_with(shape: RoofShape, parameter: Option<f64>) -> Vec<[i64; 3]> {
         floor: 0.0,
         wall_colour: Rgb(0, 0, 0),
         roof_colour: Rgb(0, 0, 0),
+        feature: 0,
     };
     let mut mesh = Mesh::default();
     mesh_group(&[volume], &[roof], &mut mesh);

@@ -5,6 +5,7 @@
 
 use super::axes::RoofAxes;
 use super::cluster::part_of;
+use super::feature::BuildingFeature;
 use super::footprint::{Footprint, FootprintError, FootprintRing, NodeKey};
 use super::group::{Volume, mesh_group};
 use super::params::BuildingParams;
@@ -99,7 +100,9 @@ pub fn generate_cluster_until(
             None => &p.record.outers,
         };
         stats.invalid_tags += p.tags.invalid.len();
-        let mut produced = false;
+        // The record's row in the feature list, if it produces a volume.
+        let feature = stats.features.len() as u32;
+        let mut first_params: Option<BuildingParams> = None;
         for (k, footprint) in p.footprints.iter().enumerate() {
             let Some(axes) = RoofAxes::of_ring(&footprint.outer.points).map(RoofAxes::long_first)
             else {
@@ -148,7 +151,6 @@ pub fn generate_cluster_until(
             if pieces.is_empty() {
                 continue;
             }
-            produced = true;
             roofs.push(surface);
             roof_ids.push(p.record.id);
             for piece in pieces {
@@ -158,15 +160,19 @@ pub fn generate_cluster_until(
                     floor,
                     wall_colour: params.wall_colour,
                     roof_colour: params.roof_colour,
+                    feature,
                 });
             }
             if k == 0 {
                 stats.count(p.record.is_part, &params);
             }
+            first_params.get_or_insert(params);
         }
-        if produced {
+        if let Some(params) = first_params {
             stats.generated += 1;
-            stats.generated_ids.push(p.record.id.to_string());
+            stats
+                .features
+                .push(BuildingFeature::new(p.record, &p.tags, &params));
         }
     }
     if stop() {

@@ -31,6 +31,8 @@ pub struct Volume<'f> {
     pub floor: f64,
     pub wall_colour: Rgb,
     pub roof_colour: Rgb,
+    /// The building the volume belongs to (its row in the scene's feature list).
+    pub feature: u32,
 }
 
 /// The floor colour (floors face the ground and are rarely seen).
@@ -285,14 +287,17 @@ fn mesh_volume(
     let roof_style = FaceStyle {
         material: Material::Roof,
         colour: v.roof_colour,
+        feature: v.feature,
     };
     let floor_style = FaceStyle {
         material: Material::Floor,
         colour: FLOOR_COLOUR,
+        feature: v.feature,
     };
     let wall_style = FaceStyle {
         material: Material::Wall,
         colour: v.wall_colour,
+        feature: v.feature,
     };
     let base = mesh.positions.len() as u32;
     for p in &planar.points {

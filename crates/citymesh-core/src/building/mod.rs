@@ -6,12 +6,14 @@
 //! footprint ([`boundary`]); the roof and floor are triangulated ([`triangulate`]) and walls added
 //! ([`walls`]); touching volumes are meshed together without hidden walls ([`group`], grouped by
 //! [`cluster`]). [`generate`] runs it all for one cluster and counts into [`stats`]; [`set`]
-//! indexes a whole data set's clusters by area and tile.
+//! indexes a whole data set's clusters by area and tile; [`feature`] is what a client learns
+//! when it picks a building.
 
 pub mod axes;
 pub mod boundary;
 pub mod cluster;
 pub mod defaults;
+pub mod feature;
 pub mod footprint;
 pub mod generate;
 pub mod group;
@@ -27,5 +29,6 @@ pub mod triangulate;
 pub mod walls;
 
 pub use cluster::clusters;
+pub use feature::{BuildingFeature, RoofOrigin};
 pub use generate::{BuildingContext, generate_cluster, generate_cluster_until};
 pub use stats::BuildingStats;

@@ -1,6 +1,7 @@
 //! What went into the buildings of a scene: the statistics of the paper's Tables 2 and 3 (share of
 //! flat roofs, roof shapes from tags or defaults) plus what was skipped and why.
 
+use super::feature::BuildingFeature;
 use super::params::{BuildingParams, HeightSource, ShapeSource};
 use super::roof::RoofShape;
 use crate::osm::OsmId;
@@ -41,9 +42,10 @@ pub struct BuildingStats {
     /// Generated records built with less than the data describes (e.g. `missing_inner_ring`),
     /// by OSM id.
     pub repaired_ids: Vec<(String, &'static str)>,
-    /// The OSM ids (`way/123`) of the generated records, in generation order.
+    /// The generated records as clients see them, in generation order (a triangle's feature id
+    /// is its index here).
     #[serde(skip)]
-    pub generated_ids: Vec<String>,
+    pub features: Vec<BuildingFeature>,
 }
 
 impl BuildingStats {
@@ -90,7 +92,7 @@ impl BuildingStats {
             shared_walls,
             dropped_constraints,
             repaired_ids,
-            generated_ids,
+            features,
         } = other;
         self.generated += generated;
         self.parts += parts;
@@ -112,7 +114,12 @@ impl BuildingStats {
         self.shared_walls += shared_walls;
         self.dropped_constraints += dropped_constraints;
         self.repaired_ids.extend(repaired_ids);
-        self.generated_ids.extend(generated_ids);
+        self.features.extend(features);
+    }
+
+    /// The OSM ids (`way/123`) of the generated records, in generation order.
+    pub fn generated_ids(&self) -> Vec<String> {
+        self.features.iter().map(|f| f.id.to_string()).collect()
     }
 
     /// Roofs counted, of any shape.

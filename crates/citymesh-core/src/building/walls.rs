@@ -115,10 +115,7 @@ mod tests {
     use super::*;
     use crate::mesh::{Material, Rgb};
 
-    const STYLE: FaceStyle = FaceStyle {
-        material: Material::Wall,
-        colour: Rgb(1, 2, 3),
-    };
+    const STYLE: FaceStyle = FaceStyle::plain(Material::Wall, Rgb(1, 2, 3));
 
     fn end(at: [f64; 2], bottom: f64, top: f64, splits: &[f64]) -> WallEnd<'_> {
         WallEnd {

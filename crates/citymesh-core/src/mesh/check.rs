@@ -98,10 +98,7 @@ mod tests {
         ] {
             m.push_vertex(p);
         }
-        let style = FaceStyle {
-            material: Material::Wall,
-            colour: Rgb(0, 0, 0),
-        };
+        let style = FaceStyle::plain(Material::Wall, Rgb(0, 0, 0));
         for mut t in [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]] {
             if flip {
                 t.swap(1, 2);

@@ -8,6 +8,11 @@ impl Rgb {
     /// The default ground colour: a muted green-grey.
     pub const GROUND: Rgb = Rgb(0x9a, 0xa8, 0x86);
 
+    /// `#rrggbb`, as CSS writes it.
+    pub fn hex(self) -> String {
+        format!("#{:02x}{:02x}{:02x}", self.0, self.1, self.2)
+    }
+
     /// The colour in linear light, as glTF vertex colours are defined, each channel in 0..=255.
     #[inline]
     pub fn to_linear_u8(self) -> [u8; 3] {

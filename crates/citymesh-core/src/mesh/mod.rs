@@ -53,11 +53,28 @@ impl Material {
     }
 }
 
-/// Material and colour of one triangle.
+/// The feature of a triangle that belongs to none (the ground).
+pub const NO_FEATURE: u32 = u32::MAX;
+
+/// Material, colour and feature of one triangle.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct FaceStyle {
     pub material: Material,
     pub colour: Rgb,
+    /// The building the triangle belongs to: an index into the scene's feature list (the row
+    /// of the GLB's property table), or [`NO_FEATURE`].
+    pub feature: u32,
+}
+
+impl FaceStyle {
+    /// A style that belongs to no feature.
+    pub const fn plain(material: Material, colour: Rgb) -> Self {
+        Self {
+            material,
+            colour,
+            feature: NO_FEATURE,
+        }
+    }
 }
 
 /// An indexed triangle mesh in a local metric frame.
@@ -97,11 +114,24 @@ impl Mesh {
 
     /// Appends `other`'s vertices and triangles (its indices moved past this mesh's vertices).
     pub fn append(&mut self, other: &Mesh) {
+        self.append_with_features(other, 0);
+    }
+
+    /// Appends `other` with its features numbered from `first_feature` on (parts of a scene
+    /// built apart, each numbering its buildings from 0).
+    pub fn append_with_features(&mut self, other: &Mesh, first_feature: u32) {
         let offset = self.positions.len() as u32;
         self.positions.extend_from_slice(&other.positions);
         self.triangles
             .extend(other.triangles.iter().map(|t| t.map(|i| i + offset)));
-        self.styles.extend_from_slice(&other.styles);
+        self.styles.extend(other.styles.iter().map(|s| FaceStyle {
+            feature: if s.feature == NO_FEATURE {
+                NO_FEATURE
+            } else {
+                s.feature + first_feature
+            },
+            ..*s
+        }));
     }
 
     /// The triangle's corner positions.

@@ -372,10 +372,7 @@ mod tests {
     /// square of side `g` around the origin.
     fn box_on_ground(x0: f64, x1: f64, y0: f64, y1: f64, h: f64, g: f64) -> Mesh {
         let mut m = Mesh::default();
-        let style = FaceStyle {
-            material: Material::Wall,
-            colour: Rgb(255, 255, 255),
-        };
+        let style = FaceStyle::plain(Material::Wall, Rgb(255, 255, 255));
         let quad = |m: &mut Mesh, q: [[f64; 3]; 4]| {
             let i = q.map(|p| m.push_vertex(p));
             m.push_triangle([i[0], i[1], i[2]], style);

@@ -868,10 +868,7 @@ impl SceneBuilder {
             hi[0] + margin,
             hi[1] + margin,
         );
-        let style = FaceStyle {
-            material: Material::Ground,
-            colour: Rgb::GROUND,
-        };
+        let style = FaceStyle::plain(Material::Ground, Rgb::GROUND);
         let i = [[x0, y0], [x1, y0], [x1, y1], [x0, y1]]
             .map(|p| self.mesh.push_vertex([p[0], p[1], 0.0]));
         self.mesh.push_triangle([i[0], i[1], i[2]], style);
@@ -929,10 +926,7 @@ fn add_box(
         corner(1.0, 1.0),
         corner(-1.0, 1.0),
     ];
-    let style = FaceStyle {
-        material: Material::Wall,
-        colour: Rgb(0, 0, 0),
-    };
+    let style = FaceStyle::plain(Material::Wall, Rgb(0, 0, 0));
     let mut quad = |q: [[f64; 3]; 4]| {
         let i = q.map(|p| mesh.push_vertex(p));
         mesh.push_triangle([i[0], i[1], i[2]], style);
@@ -963,10 +957,7 @@ fn add_tree(
 ) {
     const SIDES: usize = 10;
     const RINGS: usize = 4;
-    let style = FaceStyle {
-        material: Material::Wall,
-        colour: Rgb(0, 0, 0),
-    };
+    let style = FaceStyle::plain(Material::Wall, Rgb(0, 0, 0));
     let top = mesh.push_vertex([at[0], at[1], height]);
     let mut rings: Vec<Vec<u32>> = Vec::new();
     for r in 1..=RINGS {

@@ -8,6 +8,7 @@ mod roof_choice;
 pub use request::{SceneArea, SceneOutput, SceneRequest};
 pub use roof_choice::RoofChoice;
 
+use crate::building::feature::property_table;
 use crate::building::{BuildingContext, BuildingStats, generate_cluster_until};
 use crate::geo::{GeoBbox, LocalFrame};
 use crate::mesh::{EncodedGlb, Encoding, Mesh, Placement, encode_glb};
@@ -123,7 +124,8 @@ impl Scene {
                         .into_iter()
                         .map(|r| r.start + offset..r.end + offset),
                 );
-                mesh.append(&part);
+                // Each run numbered its buildings from 0: they follow the runs before.
+                mesh.append_with_features(&part, buildings.features.len() as u32);
                 buildings.absorb(built.buildings);
                 complete &= built.complete;
             }
@@ -140,14 +142,16 @@ impl Scene {
     }
 
     /// The scene encoded as GLB with the given placement and encoding, its buildings' OSM ids
-    /// recorded in the file.
+    /// recorded in the file and each building's properties in its property table.
     pub fn encode(&self, placement: Placement, encoding: Encoding) -> EncodedGlb {
+        let table = property_table(&self.buildings.features);
         encode_glb(
             &self.mesh,
             &self.frame,
             placement,
             encoding,
-            &self.buildings.generated_ids,
+            &self.buildings.generated_ids(),
+            Some(&table),
         )
     }
 

@@ -5,8 +5,8 @@
 //! result is placed on the Earth. Servers build one [`SceneRequest`] and hand it the data.
 
 use super::{Border, RoofChoice, Scene};
-use crate::building::BuildingStats;
 use crate::building::set::{BuildingSet, ClusterInfo, extent_with};
+use crate::building::{BuildingStats, RoofOrigin};
 use crate::geo::{BboxError, GeoBbox, ImplicitTile, TileCoord};
 use crate::mesh::{EncodedGlb, Encoding, Placement};
 use crate::osm::BuildingRecord;
@@ -136,17 +136,20 @@ impl<'a> SceneRequest<'a> {
         Self { encoding, ..self }
     }
 
-    /// Each group's records as the generator sees them (with chosen roofs applied).
+    /// Each group's records as the generator sees them (with chosen roofs applied, and only
+    /// those marked as chosen).
     fn group_records(&self) -> Vec<Vec<Cow<'a, BuildingRecord>>> {
         self.groups
             .iter()
             .map(|c| {
-                let records = self.set.cluster_records(c);
+                let records = self
+                    .set
+                    .cluster_records(c)
+                    .into_iter()
+                    .map(RoofChoice::unmarked);
                 match self.roofs {
-                    Some(roofs) if !roofs.is_empty() => {
-                        records.into_iter().map(|r| roofs.apply(r)).collect()
-                    }
-                    _ => records.into_iter().map(Cow::Borrowed).collect(),
+                    Some(roofs) if !roofs.is_empty() => records.map(|r| roofs.apply(r)).collect(),
+                    _ => records.collect(),
                 }
             })
             .collect()
@@ -169,7 +172,7 @@ impl<'a> SceneRequest<'a> {
             &|| false,
             self.workers,
         );
-        Self::output(scene, self.placement, self.encoding, &records)
+        Self::output(scene, self.placement, self.encoding)
     }
 
     /// Like [`SceneRequest::generate`], but gives up (`None`) as soon as `stop` says so (asked
@@ -188,25 +191,15 @@ impl<'a> SceneRequest<'a> {
             stop,
             self.workers,
         )?;
-        (!stop()).then(|| Self::output(scene, self.placement, self.encoding, &records))
+        (!stop()).then(|| Self::output(scene, self.placement, self.encoding))
     }
 
-    fn output(
-        scene: Scene,
-        placement: Placement,
-        encoding: Encoding,
-        records: &[Vec<Cow<'_, BuildingRecord>>],
-    ) -> SceneOutput {
-        let skipped: std::collections::HashSet<&str> = scene
+    fn output(scene: Scene, placement: Placement, encoding: Encoding) -> SceneOutput {
+        let chosen_roofs = scene
             .buildings
-            .skipped_ids
+            .features
             .iter()
-            .map(|(id, _)| id.as_str())
-            .collect();
-        let chosen_roofs = records
-            .iter()
-            .flatten()
-            .filter(|r| matches!(r, Cow::Owned(_)) && !skipped.contains(r.id.to_string().as_str()))
+            .filter(|f| matches!(f.roof_origin, RoofOrigin::Classifier { .. }))
             .count();
         SceneOutput {
             glb: scene.encode(placement, encoding),
@@ -299,7 +292,7 @@ mod tests {
                 r.tags.remove("roof:shape");
                 stripped += 1;
             }
-            choice.insert(r.id, crate::building::roof::RoofShape::Hipped);
+            choice.insert(r.id, crate::building::roof::RoofShape::Hipped, 0.9);
         }
         let set = BuildingSet::new(city.records);
         let model = ElevationModel::default();

@@ -2,15 +2,17 @@
 //! decided elsewhere (classified from imagery, docs/method.md section 11) stands in for the tag.
 //! A tag always wins: a chosen shape never replaces one the data names.
 
+use crate::building::feature::CHOSEN_ROOF_PROBABILITY;
 use crate::building::roof::RoofShape;
 use crate::osm::{BuildingRecord, OsmId};
 use std::borrow::Cow;
 use std::collections::HashMap;
 
-/// Shapes for records without a `roof:shape` tag, by OSM id.
+/// Shapes for records without a `roof:shape` tag, by OSM id, each with the probability the
+/// classifier gave it.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct RoofChoice {
-    by_id: HashMap<OsmId, RoofShape>,
+    by_id: HashMap<OsmId, (RoofShape, f32)>,
 }
 
 impl RoofChoice {
@@ -18,12 +20,12 @@ impl RoofChoice {
         Self::default()
     }
 
-    pub fn insert(&mut self, id: OsmId, shape: RoofShape) {
-        self.by_id.insert(id, shape);
+    pub fn insert(&mut self, id: OsmId, shape: RoofShape, probability: f32) {
+        self.by_id.insert(id, (shape, probability));
     }
 
     pub fn get(&self, id: &OsmId) -> Option<RoofShape> {
-        self.by_id.get(id).copied()
+        self.by_id.get(id).map(|&(shape, _)| shape)
     }
 
     pub fn len(&self) -> usize {
@@ -35,17 +37,34 @@ impl RoofChoice {
     }
 
     /// The record as the generator should see it: with the chosen shape as its `roof:shape` when
-    /// it has none and one was chosen (a copy), else itself.
-    pub fn apply<'a>(&self, record: &'a BuildingRecord) -> Cow<'a, BuildingRecord> {
-        match self.get(&record.id) {
-            Some(shape) if !record.tags.contains_key("roof:shape") => {
-                let mut patched = record.clone();
+    /// it has none and one was chosen (a copy, marked with the probability under
+    /// [`CHOSEN_ROOF_PROBABILITY`]), else itself.
+    pub fn apply<'a>(&self, record: Cow<'a, BuildingRecord>) -> Cow<'a, BuildingRecord> {
+        match self.by_id.get(&record.id) {
+            Some(&(shape, probability)) if !record.tags.contains_key("roof:shape") => {
+                let mut patched = record.into_owned();
                 patched
                     .tags
                     .insert("roof:shape".to_owned(), shape.tag().to_owned());
+                patched.tags.insert(
+                    CHOSEN_ROOF_PROBABILITY.to_owned(),
+                    format!("{probability:.4}"),
+                );
                 Cow::Owned(patched)
             }
-            _ => Cow::Borrowed(record),
+            _ => record,
+        }
+    }
+
+    /// `record` without a [`CHOSEN_ROOF_PROBABILITY`] tag of its own (data cannot pose as a
+    /// prediction): itself, or a copy without it.
+    pub fn unmarked(record: &BuildingRecord) -> Cow<'_, BuildingRecord> {
+        if record.tags.contains_key(CHOSEN_ROOF_PROBABILITY) {
+            let mut clean = record.clone();
+            clean.tags.remove(CHOSEN_ROOF_PROBABILITY);
+            Cow::Owned(clean)
+        } else {
+            Cow::Borrowed(record)
         }
     }
 }
@@ -73,29 +92,35 @@ mod tests {
     #[test]
     fn a_chosen_shape_fills_a_missing_tag_and_never_replaces_one() {
         let mut choice = RoofChoice::new();
-        choice.insert(OsmId::Way(1), RoofShape::Hipped);
-        choice.insert(OsmId::Way(2), RoofShape::Hipped);
+        choice.insert(OsmId::Way(1), RoofShape::Hipped, 0.9);
+        choice.insert(OsmId::Way(2), RoofShape::Hipped, 0.9);
         let untagged = record(1, None);
         let tagged = record(2, Some("gabled"));
         let other = record(3, None);
         assert_eq!(
             choice
-                .apply(&untagged)
+                .apply(Cow::Borrowed(&untagged))
                 .tags
                 .get("roof:shape")
                 .map(String::as_str),
             Some("hipped")
         );
-        assert!(matches!(choice.apply(&tagged), Cow::Borrowed(_)));
+        assert!(matches!(
+            choice.apply(Cow::Borrowed(&tagged)),
+            Cow::Borrowed(_)
+        ));
         assert_eq!(
             choice
-                .apply(&tagged)
+                .apply(Cow::Borrowed(&tagged))
                 .tags
                 .get("roof:shape")
                 .map(String::as_str),
             Some("gabled")
         );
-        assert!(matches!(choice.apply(&other), Cow::Borrowed(_)));
+        assert!(matches!(
+            choice.apply(Cow::Borrowed(&other)),
+            Cow::Borrowed(_)
+        ));
         assert_eq!(choice.len(), 2);
     }
 }

@@ -107,10 +107,7 @@ pub fn build_ground(
     let corner_w = (ci1 - ci0 + 2) as usize;
     let mut corner_ids = vec![u32::MAX; corner_w * (cj1 - cj0 + 2) as usize];
     let mut border_ids: HashMap<(u64, u64), u32> = HashMap::default();
-    let style = FaceStyle {
-        material: Material::Ground,
-        colour: Rgb::GROUND,
-    };
+    let style = FaceStyle::plain(Material::Ground, Rgb::GROUND);
     let first_triangle = mesh.triangles.len();
     let to_local = |u: f64, v: f64, h: f64| frame.to_local(u / p, v / p, h);
 

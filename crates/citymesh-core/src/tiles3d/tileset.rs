@@ -1,5 +1,6 @@
 //! The tileset JSON of a region with implicit quadtree tiling.
 
+use crate::building::feature::BUILDING_CLASS;
 use crate::building::set::BuildingSet;
 use crate::building::tags::parse_length;
 use crate::geo::{GeoBbox, LocalFrame};
@@ -86,7 +87,8 @@ impl ImplicitLayout {
     }
 }
 
-/// The tileset; `prefix` is put before the content and subtree templates (relative URIs).
+/// The tileset; `prefix` is put before the content and subtree templates (relative URIs). It
+/// declares the schema of the buildings' property tables in its content.
 pub fn tileset_json(layout: &ImplicitLayout, prefix: &str) -> Value {
     let r = &layout.root;
     let region = [
@@ -99,6 +101,7 @@ pub fn tileset_json(layout: &ImplicitLayout, prefix: &str) -> Value {
     ];
     json!({
         "asset": {"version": "1.1", "generator": concat!("citymesh ", env!("CARGO_PKG_VERSION"))},
+        "schema": BUILDING_CLASS.schema(),
         "geometricError": layout.root_error() * 2.0,
         "root": {
             "boundingVolume": {"region": region},

@@ -13,6 +13,7 @@
 use super::encoding::Encoding;
 use super::layout::IndexedLayout;
 use super::meshopt::{ViewMode, compress_view};
+use super::metadata::{NULL_FEATURE_ID, PropertyTable};
 use super::placement::NodePlacement;
 use super::quantize::Quantization;
 use serde_json::{Map, Value, json};
@@ -73,13 +74,16 @@ fn sizes(encoding: Encoding) -> AttributeSizes {
 }
 
 /// Writes the document of `layout` in `encoding`. `quantization` must be given for the quantized
-/// encodings (the positions in `layout` are then step counts).
+/// encodings (the positions in `layout` are then step counts). With `features`, the vertices'
+/// features become `_FEATURE_ID_0` (`EXT_mesh_features`) pointing at its rows
+/// (`EXT_structural_metadata`).
 pub fn assemble(
     layout: &IndexedLayout,
     node: &NodePlacement,
     quantization: Option<Quantization>,
     encoding: Encoding,
     buildings: &[String],
+    features: Option<&PropertyTable>,
 ) -> Document {
     let mut root = Map::new();
     root.insert(
@@ -97,14 +101,17 @@ pub fn assemble(
         };
     }
     let size = sizes(encoding);
-    let (bin, views) = write_binary(layout, encoding, &size);
+    let features = features.filter(|t| t.count() > 0 && layout.has_features());
+    let (bin, views, feature_view) = write_binary(layout, encoding, &size, features.is_some());
 
     let mut accessors = Vec::new();
     let mut materials = Vec::new();
     let mut primitives = Vec::new();
-    // Views 0.. are positions, normals (if any), colours, then one per primitive's indices.
+    // Views 0.. are positions, normals (if any), colours, feature ids (if any), then one per
+    // primitive's indices.
     let normals_view = layout.has_normals.then_some(1);
     let colours_view = if layout.has_normals { 2 } else { 1 };
+    let first_index_view = colours_view + 1 + usize::from(feature_view.is_some());
     let mut first = 0usize;
     for (k, p) in layout.primitives.iter().enumerate() {
         let count = p.positions.len();
@@ -143,7 +150,24 @@ pub fn assemble(
             "count": count,
             "type": "VEC4",
         }));
-        let index_view = colours_view + 1 + k;
+        let mut extensions = None;
+        if let Some((view, from)) = feature_view.filter(|&(_, from)| first >= from) {
+            attributes.insert("_FEATURE_ID_0".into(), json!(accessors.len()));
+            accessors.push(json!({
+                "bufferView": view,
+                "byteOffset": (first - from) * 4,
+                "componentType": FLOAT,
+                "count": count,
+                "type": "SCALAR",
+            }));
+            let mut ids = json!({"featureCount": features.map_or(0, PropertyTable::count),
+                "attribute": 0, "propertyTable": 0});
+            if p.features.contains(&crate::mesh::NO_FEATURE) {
+                ids["nullFeatureId"] = json!(NULL_FEATURE_ID);
+            }
+            extensions = Some(json!({"EXT_mesh_features": {"featureIds": [ids]}}));
+        }
+        let index_view = first_index_view + k;
         let indices = accessors.len();
         accessors.push(json!({
             "bufferView": index_view,
@@ -160,16 +184,20 @@ pub fn assemble(
                 "roughnessFactor": 0.9,
             },
         }));
-        primitives.push(json!({
+        let mut primitive = json!({
             "attributes": attributes,
             "indices": indices,
             "material": k,
             "mode": 4,
-        }));
+        });
+        if let Some(e) = extensions {
+            primitive["extensions"] = e;
+        }
+        primitives.push(primitive);
         first += count;
     }
 
-    let (bin, buffers, view_json) = if encoding == Encoding::Meshopt {
+    let (mut bin, mut buffers, mut view_json) = if encoding == Encoding::Meshopt {
         compressed(&bin, &views)
     } else {
         let views = views
@@ -179,15 +207,27 @@ pub fn assemble(
         let buffers = json!([{"byteLength": bin.len()}]);
         (bin, buffers, views)
     };
+    let metadata = features.map(|table| {
+        let ext = table.append_to(&mut bin, &mut view_json);
+        buffers[0]["byteLength"] = json!(bin.len());
+        ext
+    });
 
     let mut node_json = json!({"mesh": 0, "name": "citymesh"});
     if let Some(matrix) = node_matrix(node, quantization) {
         node_json["matrix"] = json!(matrix);
     }
-    let extensions = encoding.extensions();
-    if !extensions.is_empty() {
-        root.insert("extensionsUsed".into(), json!(extensions));
-        root.insert("extensionsRequired".into(), json!(extensions));
+    let required = encoding.extensions();
+    let mut used: Vec<&str> = required.to_vec();
+    if let Some(ext) = metadata {
+        used.extend(["EXT_mesh_features", "EXT_structural_metadata"]);
+        root.insert("extensions".into(), json!({"EXT_structural_metadata": ext}));
+    }
+    if !used.is_empty() {
+        root.insert("extensionsUsed".into(), json!(used));
+    }
+    if !required.is_empty() {
+        root.insert("extensionsRequired".into(), json!(required));
     }
     root.insert("accessors".into(), Value::Array(accessors));
     root.insert("bufferViews".into(), Value::Array(view_json));
@@ -250,13 +290,16 @@ fn compressed(bin: &[u8], views: &[View]) -> (Vec<u8>, Value, Vec<Value>) {
     (out, buffers, json_views)
 }
 
-/// The uncompressed buffer and its views: positions, normals (if any), colours, then each
-/// primitive's indices, each view starting at a multiple of 4 bytes.
+/// The uncompressed buffer and its views: positions, normals (if any), colours, feature ids (if
+/// `with_features`), then each primitive's indices, each view starting at a multiple of 4 bytes.
+/// The feature id view covers the vertices from the first primitive with features on (the
+/// ground, first, has none); it is returned with that first vertex.
 fn write_binary(
     layout: &IndexedLayout,
     encoding: Encoding,
     size: &AttributeSizes,
-) -> (Vec<u8>, Vec<View>) {
+    with_features: bool,
+) -> (Vec<u8>, Vec<View>, Option<(usize, usize)>) {
     let vertices = layout.vertex_count();
     let mut views = Vec::with_capacity(3 + layout.primitives.len());
     let mut offset = 0;
@@ -274,6 +317,17 @@ fn write_binary(
         add(vertices * size.normal, size.normal, ARRAY_BUFFER);
     }
     add(vertices * 4, 4, ARRAY_BUFFER);
+    let feature_from = with_features.then(|| {
+        layout
+            .primitives
+            .iter()
+            .take_while(|p| p.features.iter().all(|&f| f == crate::mesh::NO_FEATURE))
+            .map(|p| p.positions.len())
+            .sum::<usize>()
+    });
+    if let Some(from) = feature_from {
+        add((vertices - from) * 4, 4, ARRAY_BUFFER);
+    }
     for p in &layout.primitives {
         let element = index_size(p.positions.len());
         add(p.indices.len() * element, element, ELEMENT_ARRAY_BUFFER);
@@ -326,6 +380,28 @@ fn write_binary(
         }
         next += 1;
     }
+    let feature_view = feature_from.map(|from| {
+        let v = &views[next];
+        let ids = layout
+            .primitives
+            .iter()
+            .flat_map(|p| &p.features)
+            .skip(from);
+        for (d, &f) in bin[v.offset..v.offset + v.length]
+            .chunks_exact_mut(4)
+            .zip(ids)
+        {
+            let id = if f == crate::mesh::NO_FEATURE {
+                NULL_FEATURE_ID
+            } else {
+                f.min(NULL_FEATURE_ID - 1)
+            };
+            // Whole numbers below 2^24: exact in f32.
+            d.copy_from_slice(&(id as f32).to_le_bytes());
+        }
+        next += 1;
+        (next - 1, from)
+    });
     for (p, v) in layout.primitives.iter().zip(&views[next..]) {
         let dst = &mut bin[v.offset..v.offset + v.length];
         if v.element == 2 {
@@ -339,7 +415,7 @@ fn write_binary(
             }
         }
     }
-    (bin, views)
+    (bin, views, feature_view)
 }
 
 /// 2-byte indices when a primitive's vertices fit (65,535 itself is reserved), else 4.

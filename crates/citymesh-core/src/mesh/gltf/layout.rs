@@ -25,6 +25,8 @@ pub struct LayoutPrimitive {
     pub normals: Vec<[f32; 3]>,
     /// Linear RGBA colours.
     pub colours: Vec<[u8; 4]>,
+    /// The feature (building) of each vertex, [`crate::mesh::NO_FEATURE`] for none.
+    pub features: Vec<u32>,
     /// Three per triangle, counter-clockwise seen from outside.
     pub indices: Vec<u32>,
 }
@@ -38,21 +40,22 @@ pub struct IndexedLayout {
 }
 
 /// A vertex already written for a stored position: the next one for the same position, and its
-/// colour and quantised normal packed into one comparable key.
+/// colour, feature and quantised normal packed into one comparable key.
 struct Written {
     next: u32,
-    key: u64,
+    key: u128,
 }
 
-/// The sharing key of a face: its colour (24 bits) and, where normals are stored, its quantised
-/// normal (3 x 13 bits).
-fn face_key(colour: [u8; 4], n: Option<[f32; 3]>) -> u64 {
+/// The sharing key of a face: its colour (24 bits), its feature (32 bits) and, where normals are
+/// stored, its quantised normal (3 x 15 bits), each in bits of its own.
+fn face_key(colour: [u8; 4], feature: u32, n: Option<[f32; 3]>) -> u128 {
     // c * steps + 16384.5 is positive for a unit component, so truncation rounds to nearest.
-    let q = |c: f32| u64::from((c * NORMAL_STEPS + 16_384.5) as u32 & 0x7fff);
+    let q = |c: f32| u128::from((c * NORMAL_STEPS + 16_384.5) as u32 & 0x7fff);
     let normal = n.map_or(0, |n| (q(n[0]) << 30) | (q(n[1]) << 15) | q(n[2]));
-    (u64::from(colour[0]) << 56)
-        | (u64::from(colour[1]) << 48)
-        | (u64::from(colour[2]) << 40)
+    (u128::from(colour[0]) << 112)
+        | (u128::from(colour[1]) << 104)
+        | (u128::from(colour[2]) << 96)
+        | (u128::from(feature) << 64)
         | normal
 }
 
@@ -177,6 +180,7 @@ impl IndexedLayout {
                 positions: Vec::with_capacity(most),
                 normals: Vec::with_capacity(if with_normals { most } else { 0 }),
                 colours: Vec::with_capacity(most),
+                features: Vec::with_capacity(most),
                 indices: Vec::with_capacity(most),
             };
             let mut written: Vec<Written> = Vec::with_capacity(most);
@@ -184,7 +188,7 @@ impl IndexedLayout {
             for (style, (corners, normal)) in triangles {
                 let [r, g, b] = style.colour.to_linear_u8();
                 let colour = [r, g, b, 255];
-                let key = face_key(colour, with_normals.then_some(normal));
+                let key = face_key(colour, style.feature, with_normals.then_some(normal));
                 for corner in corners {
                     let slot = &mut first[corner as usize];
                     let mut at = *slot;
@@ -209,6 +213,7 @@ impl IndexedLayout {
                             p.normals.push(normal);
                         }
                         p.colours.push(colour);
+                        p.features.push(style.feature);
                     }
                     p.indices.push(found);
                 }
@@ -227,6 +232,13 @@ impl IndexedLayout {
     /// Vertices over all primitives.
     pub fn vertex_count(&self) -> usize {
         self.primitives.iter().map(|p| p.positions.len()).sum()
+    }
+
+    /// Whether any vertex belongs to a feature.
+    pub fn has_features(&self) -> bool {
+        self.primitives
+            .iter()
+            .any(|p| p.features.iter().any(|&f| f != crate::mesh::NO_FEATURE))
     }
 
     /// Triangles over all primitives.
@@ -268,7 +280,7 @@ mod tests {
     }
 
     fn style(material: Material, colour: Rgb) -> FaceStyle {
-        FaceStyle { material, colour }
+        FaceStyle::plain(material, colour)
     }
 
     /// A unit square in the x/y plane split into two triangles, plus a third triangle folded up

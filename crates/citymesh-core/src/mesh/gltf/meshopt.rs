@@ -36,6 +36,7 @@ pub fn reorder(p: &mut LayoutPrimitive) {
     permute(&mut p.positions, &remap);
     permute(&mut p.normals, &remap);
     permute(&mut p.colours, &remap);
+    permute(&mut p.features, &remap);
 }
 
 /// Moves each element to its new place (`remap[old] = new`).
@@ -122,6 +123,7 @@ mod tests {
             positions: (0..5).map(|i| [i as f32, 0.0, 0.0]).collect(),
             normals: Vec::new(),
             colours: (0..5).map(|i| [i as u8, 0, 0, 255]).collect(),
+            features: Vec::new(),
             indices: vec![4, 3, 2, 0, 1, 2, 2, 1, 3],
         };
         let before = triangles(&p);

@@ -7,7 +7,8 @@
 //! 3. [`layout`]: the indexed vertex layout. One primitive per [`super::Material`]; vertices
 //!    welded by stored position and shared within a face (or, without normals, by every face
 //!    of a colour); for `meshopt`, reordered by [`meshopt`] for its codecs.
-//! 4. [`document`]: the glTF JSON and the binary buffer in the encoding.
+//! 4. [`document`]: the glTF JSON and the binary buffer in the encoding, with the features'
+//!    property table from [`metadata`].
 //! 5. [`container`]: the GLB container (header, JSON chunk, BIN chunk).
 //!
 //! Normals are stored for Earth-centred content only: CesiumJS, which loads 3D Tiles, lights a
@@ -19,12 +20,14 @@ mod document;
 mod encoding;
 mod layout;
 mod meshopt;
+pub mod metadata;
 mod placement;
 mod quantize;
 
 pub use container::write_container_with;
 pub use encoding::{Encoding, UnknownEncoding};
 pub use layout::{IndexedLayout, LayoutPrimitive};
+pub use metadata::{ClassDef, Column, PropertyDef, PropertyTable, PropertyType};
 pub use placement::{NodePlacement, Placed, Placement, local_axes, node_placement, place};
 pub use quantize::{Quantization, Stored, store};
 
@@ -42,13 +45,15 @@ pub struct EncodedGlb {
 }
 
 /// Encodes `mesh`, built in `frame`, with the given placement and encoding. `buildings` (OSM
-/// ids such as `way/123`) are listed in `scenes[0].extras.buildings`.
+/// ids such as `way/123`) are listed in `scenes[0].extras.buildings`; `features` holds a row per
+/// feature the mesh's triangles name.
 pub fn encode_glb(
     mesh: &Mesh,
     frame: &LocalFrame,
     placement: Placement,
     encoding: Encoding,
     buildings: &[String],
+    features: Option<&PropertyTable>,
 ) -> EncodedGlb {
     // Local files: positions are the mesh's, turned to glTF axes on the way into storage.
     // Earth-centred ones: placed first, and the placed positions give the normals they store.
@@ -69,7 +74,14 @@ pub fn encode_glb(
         layout.primitives.iter_mut().for_each(meshopt::reorder);
     }
     let (vertices, triangles) = (layout.vertex_count(), layout.triangle_count());
-    let doc = document::assemble(&layout, &node, stored.quantization, encoding, buildings);
+    let doc = document::assemble(
+        &layout,
+        &node,
+        stored.quantization,
+        encoding,
+        buildings,
+        features,
+    );
     let bytes = write_container_with(doc.json, doc.bin.len(), |out| {
         out.extend_from_slice(&doc.bin);
     });

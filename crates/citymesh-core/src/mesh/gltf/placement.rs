@@ -83,13 +83,7 @@ mod tests {
     fn one_vertex(p: [f64; 3]) -> Mesh {
         let mut m = Mesh::default();
         m.push_vertex(p);
-        m.push_triangle(
-            [0, 0, 0],
-            FaceStyle {
-                material: Material::Wall,
-                colour: Rgb::GROUND,
-            },
-        );
+        m.push_triangle([0, 0, 0], FaceStyle::plain(Material::Wall, Rgb::GROUND));
         m
     }
 
