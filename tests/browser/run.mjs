@@ -68,7 +68,11 @@ const browser = await chromium.launch({
 });
 let passed = 0, failed = 0;
 
+// CITYMESH_BROWSER_ONLY=REGEX runs only the checks whose names match (while working on one).
+const only = process.env.CITYMESH_BROWSER_ONLY ? new RegExp(process.env.CITYMESH_BROWSER_ONLY) : null;
+
 async function check(name, fn) {
+  if (only && !only.test(name)) return;
   try {
     await fn();
     passed++;
@@ -187,6 +191,69 @@ try {
     if (shared.get('lat') !== '49.053100' || Math.abs(Number(shared.get('height')) - 900) > 0.5) throw new Error(`URL: ${shared}`);
     console.log(`  camera ${JSON.stringify(got)}; ${s.tilesLoaded} tiles; URL after moving: ?${shared}`);
     await c.page.close();
+  });
+
+  /** Opens `page` (its state in window[stateName]) looking straight down on the PLAZA INN hotel
+   * (way 142104398), clicks the middle of the view, and checks that the panel shows the
+   * building's OSM id and name and that the building changed colour (highlighted). */
+  const pickBuilding = async (base, page, stateName, query = '') => {
+    const camera = 'lon=8.3936613&lat=49.0439723&height=420&heading=0&pitch=-90';
+    const c = await open(`${base}/${page}?${camera}${query}`,
+      `window.${stateName} && (window.${stateName}.ready || window.${stateName}.errors.length)`, 180000);
+    const s = await c.page.evaluate((n) => window[n], stateName);
+    if (s.errors.length) throw new Error(s.errors.join('\n'));
+    if (c.problems.length) throw new Error(c.problems.join('\n'));
+    const { width, height } = c.page.viewportSize();
+    const pixel = async () => {
+      const shot = PNG.sync.read(await c.page.screenshot());
+      const i = (Math.floor(height / 2) * shot.width + Math.floor(width / 2)) * 4;
+      return [shot.data[i], shot.data[i + 1], shot.data[i + 2]];
+    };
+    const before = await pixel();
+    await c.page.mouse.click(width / 2, height / 2);
+    await c.page.waitForFunction((n) => window[n].picked, stateName, { timeout: 20000 });
+    await c.page.waitForTimeout(500);
+    const picked = await c.page.evaluate((n) => window[n].picked, stateName);
+    const panel = await c.page.textContent('#picked');
+    const after = await pixel();
+    await c.page.screenshot({ path: `${artifacts}/${page}-picked${query ? '-export' : ''}.png` });
+    if (`${picked.osm_type}/${picked.osm_id}` !== 'way/142104398') throw new Error(`picked ${JSON.stringify(picked)}`);
+    if (!panel.includes('way/142104398') || !panel.includes('PLAZA INN Karlsruhe Nord')) throw new Error(`panel: ${panel}`);
+    if (picked.roof_source !== 'tag' || Number(picked.height) !== 12) throw new Error(`properties: ${JSON.stringify(picked)}`);
+    const moved = before.reduce((sum, v, k) => sum + Math.abs(v - after[k]), 0);
+    if (!(moved > 15)) throw new Error(`the building was not highlighted: ${before} -> ${after}`);
+    console.log(`  picked ${picked.osm_type}/${picked.osm_id} (${picked.name}); pixel ${before} -> ${after}`);
+    await c.page.close();
+  };
+  await check('CesiumJS: a click on a building shows its OSM id and properties and highlights it', () =>
+    pickBuilding(karlsruhe.url, 'cesium', 'citymeshCesium'));
+  await check('3d-tiles-renderer: a click on a building shows its OSM id and properties and highlights it', () =>
+    pickBuilding(karlsruhe.url, '3dtiles-renderer', 'citymeshTilesRenderer'));
+
+  await check('3d-tiles-renderer opens at the camera in the URL and keeps the camera in the URL', async () => {
+    const want = { lon: 8.3995, lat: 49.0525, height: 1200, heading: 30, pitch: -50 };
+    const t = await open(`${karlsruhe.url}/3dtiles-renderer?${new URLSearchParams(Object.entries(want).map(([k, v]) => [k, String(v)]))}`,
+      'window.citymeshTilesRenderer && (window.citymeshTilesRenderer.ready || window.citymeshTilesRenderer.errors.length)');
+    const s = await t.page.evaluate(() => window.citymeshTilesRenderer);
+    if (s.errors.length) throw new Error(s.errors.join('\n'));
+    if (t.problems.length) throw new Error(t.problems.join('\n'));
+    const got = s.camera;
+    const off = (k, tolerance) => Math.abs(got[k] - want[k]) > tolerance;
+    if (off('lon', 1e-6) || off('lat', 1e-6) || off('height', 0.5) || off('heading', 0.1) || off('pitch', 0.1)) {
+      throw new Error(`the camera is at ${JSON.stringify(got)}, not ${JSON.stringify(want)}`);
+    }
+    const shared = new URL(t.page.url()).searchParams;
+    if (shared.get('lon') !== '8.399500' || shared.get('pitch') !== '-50.0') throw new Error(`URL: ${shared}`);
+    const credit = await t.page.textContent('#credit');
+    if (!credit.includes('OpenStreetMap')) throw new Error(`credit: ${credit}`);
+    // The user drags: the URL follows.
+    await t.page.mouse.move(500, 350);
+    await t.page.mouse.down();
+    await t.page.mouse.move(650, 420, { steps: 10 });
+    await t.page.mouse.up();
+    await t.page.waitForFunction(() => new URLSearchParams(location.search).get('lon') !== '8.399500', null, { timeout: 20000 });
+    console.log(`  camera ${JSON.stringify(got)}; after dragging: ?${new URL(t.page.url()).searchParams}`);
+    await t.page.close();
   });
 
   await check('viewer shows roofs classified by queued jobs (roofs=classified)', async () => {
