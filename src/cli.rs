@@ -39,6 +39,11 @@ pub enum Command {
     /// Classify the roof of one building per image (PNG or JPEG, any size, centred on the
     /// building): prints one JSON line per file with the class probabilities.
     ClassifyImage(ClassifyImageArgs),
+    /// Write a static tree of tiles for a static file server or object store: a 3D Tiles
+    /// tileset (`tileset.json`, `subtrees/`, `content/`) or XYZ GLB tiles (`{z}/{x}/{y}.glb`),
+    /// from the data the server would use (the serve options). Resumable: run the same command
+    /// again after an interrupt and it writes only what is missing.
+    Export(Box<ExportArgs>),
     /// Classify the roofs of OSM buildings from an XYZ imagery service, in the foreground: writes
     /// the predictions as GeoJSON and, with --all, how they agree with the roof:shape tags.
     Classify(ClassifyArgs),
@@ -346,6 +351,52 @@ impl From<EncodingArg> for citymesh_core::mesh::Encoding {
             EncodingArg::Meshopt => Self::Meshopt,
         }
     }
+}
+
+/// Options of `citymesh export`.
+#[derive(Debug, Clone, Parser)]
+pub struct ExportArgs {
+    /// The area as minLon,minLat,maxLon,maxLat (the 3D Tiles region; the XYZ tiles covering it).
+    #[arg(long)]
+    pub bbox: String,
+
+    /// The directory to write the tree into (created if missing; files already there are kept).
+    #[arg(long, short)]
+    pub out: PathBuf,
+
+    /// `3dtiles` (implicit tiling, as `/3dtiles/tileset.json` serves it) or `xyz`.
+    #[arg(long, value_enum, default_value_t = ExportFormat::Tiles3d)]
+    pub format: ExportFormat,
+
+    /// XYZ zoom levels, `A-B` or `A` (default 16).
+    #[arg(long)]
+    pub zooms: Option<String>,
+
+    /// How GLBs store vertices (default: meshopt for 3D Tiles, plain for XYZ, as served).
+    #[arg(long, value_enum)]
+    pub encoding: Option<EncodingArg>,
+
+    /// Tiles generated at once (default: the machine's cores).
+    #[arg(long)]
+    pub workers: Option<usize>,
+
+    /// No progress bar or summary.
+    #[arg(long)]
+    pub quiet: bool,
+
+    /// Where the data comes from, as for `serve` (--osm, --dem-dir, --cache-db, Overpass...).
+    #[command(flatten)]
+    pub serve: ServeArgs,
+}
+
+/// `--format` of `citymesh export`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ExportFormat {
+    /// 3D Tiles 1.1.
+    #[value(name = "3dtiles")]
+    Tiles3d,
+    /// XYZ GLB tiles.
+    Xyz,
 }
 
 /// Options of `citymesh import`.

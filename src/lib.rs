@@ -14,6 +14,7 @@ pub mod cli;
 pub mod db;
 pub mod dem;
 pub mod error;
+pub mod export;
 pub mod generation_stats;
 pub mod imagery;
 pub mod import;

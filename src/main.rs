@@ -12,9 +12,10 @@ fn main() -> anyhow::Result<()> {
     match Cli::parse().command.unwrap_or_default() {
         // Serving and the commands that talk to the database or the network need the runtime;
         // batch commands run on this thread and start none (it shows in whole-process timings).
-        command @ (Command::Serve(_) | Command::Import(_) | Command::Classify(_)) => {
-            runtime(command)
-        }
+        command @ (Command::Serve(_)
+        | Command::Import(_)
+        | Command::Classify(_)
+        | Command::Export(_)) => runtime(command),
         Command::AdaptRoofs(args) if args.labels.is_none() => runtime(Command::AdaptRoofs(args)),
         command => run_batch(command),
     }
@@ -48,6 +49,11 @@ async fn run(command: Command) -> anyhow::Result<()> {
                 report.tiles_invalidated,
                 args.cache_db
             );
+            Ok(())
+        }
+        Command::Export(args) => {
+            let state = citymesh::server::build_state(&args.serve).await?;
+            citymesh::export::run(&state, &args).await?;
             Ok(())
         }
         Command::Classify(args) => {
@@ -141,7 +147,11 @@ fn run_batch(command: Command) -> anyhow::Result<()> {
                 std::process::exit(1)
             }
         }
-        Command::Serve(_) | Command::Import(_) | Command::Classify(_) | Command::AdaptRoofs(_) => {
+        Command::Serve(_)
+        | Command::Import(_)
+        | Command::Classify(_)
+        | Command::Export(_)
+        | Command::AdaptRoofs(_) => {
             anyhow::bail!("this command needs the async runtime (main starts it)")
         }
     }

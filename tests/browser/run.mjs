@@ -10,8 +10,9 @@ import { chromium } from 'playwright-core';
 import { PNG } from 'pngjs';
 import { spawn } from 'node:child_process';
 import { createServer } from 'node:http';
-import { mkdirSync, existsSync } from 'node:fs';
-import { resolve, dirname } from 'node:path';
+import { mkdirSync, existsSync, rmSync } from 'node:fs';
+import { readFile } from 'node:fs/promises';
+import { resolve, dirname, extname } from 'node:path';
 import { fileURLToPath } from 'node:url';
 
 const root = resolve(dirname(fileURLToPath(import.meta.url)), '../..');
@@ -30,6 +31,34 @@ function startImagery() {
   const body = PNG.sync.write(png, { colorType: 2 });
   const server = createServer((req, res) => { res.writeHead(200, { 'content-type': 'image/png' }); res.end(body); });
   return new Promise((ok) => server.listen(0, '127.0.0.1', () => ok({ url: `http://127.0.0.1:${server.address().port}`, server })));
+}
+
+/** A plain static file server over `dir` on 127.0.0.1 (what a CDN or object store does: files
+ * as they are, with the CORS header that lets another origin's page read them). */
+function startStatic(dir) {
+  const types = { '.json': 'application/json', '.glb': 'model/gltf-binary', '.subtree': 'application/octet-stream' };
+  const server = createServer(async (req, res) => {
+    // Repeated slashes are one, as nginx and Python's http.server take them.
+    const path = resolve(dir, '.' + decodeURIComponent(req.url.split('?')[0]).replace(/\/+/g, '/'));
+    try {
+      if (!path.startsWith(dir)) throw new Error('outside');
+      const body = await readFile(path);
+      res.writeHead(200, { 'content-type': types[extname(path)] ?? 'application/octet-stream', 'access-control-allow-origin': '*' });
+      res.end(body);
+    } catch {
+      res.writeHead(404, { 'access-control-allow-origin': '*' });
+      res.end();
+    }
+  });
+  return new Promise((ok) => server.listen(0, '127.0.0.1', () => ok({ url: `http://127.0.0.1:${server.address().port}`, server })));
+}
+
+/** Runs `citymesh export ARGS` to the end. */
+function runExport(args) {
+  return new Promise((ok, fail) => {
+    const child = spawn(bin, ['export', '--quiet', '--cache-db', ':memory:', '--log-level', 'warn', ...args], { cwd: root, stdio: ['ignore', 'inherit', 'inherit'] });
+    child.on('exit', (code) => (code === 0 ? ok() : fail(new Error(`citymesh export exited with ${code}`))));
+  });
 }
 
 function startServer(name, args) {
@@ -101,6 +130,7 @@ async function open(url, ready, timeout = 120000) {
 
 const servers = [];
 let imagery = null;
+let files = null;
 try {
   const karlsruhe = await startServer('karlsruhe', ['--dem-dir', `${data}/dem`, '--osm', `${data}/osm/karlsruhe-kirchfeld.osm.pbf`]);
   const demo = await startServer('demo', ['--dem-dir', resolve(root, 'target/no-dem')]);
@@ -201,8 +231,7 @@ try {
     const c = await open(`${base}/${page}?${camera}${query}`,
       `window.${stateName} && (window.${stateName}.ready || window.${stateName}.errors.length)`, 180000);
     const s = await c.page.evaluate((n) => window[n], stateName);
-    if (s.errors.length) throw new Error(s.errors.join('\n'));
-    if (c.problems.length) throw new Error(c.problems.join('\n'));
+    if (s.errors.length || c.problems.length) throw new Error([...s.errors, ...c.problems].join('\n'));
     const { width, height } = c.page.viewportSize();
     const pixel = async () => {
       const shot = PNG.sync.read(await c.page.screenshot());
@@ -229,6 +258,21 @@ try {
     pickBuilding(karlsruhe.url, 'cesium', 'citymeshCesium'));
   await check('3d-tiles-renderer: a click on a building shows its OSM id and properties and highlights it', () =>
     pickBuilding(karlsruhe.url, '3dtiles-renderer', 'citymeshTilesRenderer'));
+
+  // A static export of the same buildings, served by a plain file server: picking works there.
+  const exported = resolve(artifacts, 'export');
+  rmSync(exported, { recursive: true, force: true });
+  const exportServed = async () => {
+    if (!files) {
+      await runExport(['--bbox', '8.380,49.035,8.415,49.065', '--out', exported, '--osm', `${data}/osm/karlsruhe-kirchfeld.osm.pbf`, '--dem-dir', `${data}/dem`]);
+      files = await startStatic(exported);
+    }
+    return `&tileset=${encodeURIComponent(`${files.url}/tileset.json`)}`;
+  };
+  await check('CesiumJS: picking works on a static export served by a plain file server', async () =>
+    pickBuilding(karlsruhe.url, 'cesium', 'citymeshCesium', await exportServed()));
+  await check('3d-tiles-renderer: picking works on a static export served by a plain file server', async () =>
+    pickBuilding(karlsruhe.url, '3dtiles-renderer', 'citymeshTilesRenderer', await exportServed()));
 
   await check('3d-tiles-renderer opens at the camera in the URL and keeps the camera in the URL', async () => {
     const want = { lon: 8.3995, lat: 49.0525, height: 1200, heading: 30, pitch: -50 };
@@ -292,6 +336,7 @@ try {
 } finally {
   await browser.close();
   imagery?.server.close();
+  files?.server.close();
   for (const s of servers) s.kill('SIGTERM');
 }
 console.log(`${passed} passed, ${failed} failed`);
