@@ -15,7 +15,7 @@ use crate::state::AppState;
 use citymesh_core::geo::{GeoBbox, ImplicitTile, TileCoord};
 use citymesh_core::mesh::Encoding;
 use citymesh_core::scene::SceneArea;
-use citymesh_core::tiles3d::{root_subtree, tileset_json};
+use citymesh_core::tiles3d::tileset_json;
 use futures_util::StreamExt;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
@@ -67,7 +67,13 @@ pub async fn run(state: &AppState, args: &ExportArgs) -> anyhow::Result<ExportSu
                 .collect();
             let tileset = serde_json::to_vec_pretty(&tileset_json(&layout, ""))?;
             let last = vec![
-                (out.join("subtrees/0/0/0.subtree"), root_subtree(level)),
+                (
+                    out.join("subtrees/0/0/0.subtree"),
+                    pipeline::subtree(state, bbox)
+                        .await
+                        .map_err(app_error)?
+                        .to_vec(),
+                ),
                 (out.join("tileset.json"), tileset),
             ];
             (content, last)

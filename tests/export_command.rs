@@ -52,7 +52,11 @@ fn an_export_killed_half_way_and_run_again_is_byte_identical_to_one_run() {
 
     // One uninterrupted run, on all cores.
     let out = export(&whole, KIT_NORD, osm, &[]).output().unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         stdout.contains("exported 1026 files (1026 written now, 0 kept)"),
@@ -90,7 +94,11 @@ fn an_export_killed_half_way_and_run_again_is_byte_identical_to_one_run() {
     let out = export(&resumed, KIT_NORD, osm, &["--workers", "1"])
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let stdout = String::from_utf8_lossy(&out.stdout);
     let kept = partial.keys().filter(|k| !k.ends_with(".partial")).count();
     assert!(
@@ -122,7 +130,11 @@ fn xyz_export_writes_the_tiles_the_server_serves() {
     )
     .output()
     .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert!(out.stdout.is_empty(), "--quiet prints nothing");
     let files = tree(dir.path());
     let bbox_parsed: citymesh_core::geo::GeoBbox = bbox.parse().unwrap();
@@ -145,7 +157,10 @@ fn xyz_export_writes_the_tiles_the_server_serves() {
 fn a_wrong_export_says_what_to_fix() {
     let dir = tempfile::tempdir().unwrap();
     for (args, says) in [
-        (vec!["--zooms", "18-16", "--format", "xyz"], "18 is above 16"),
+        (
+            vec!["--zooms", "18-16", "--format", "xyz"],
+            "18 is above 16",
+        ),
         (vec!["--format", "gltf"], "invalid value 'gltf'"),
     ] {
         let out = export(dir.path(), KIT_NORD, "karlsruhe-kit-nord.osm.pbf", &args)

@@ -142,6 +142,57 @@ async fn the_tileset_subtree_and_content_follow_3d_tiles_1_1() {
     // One subtree holds every level: no child subtrees.
     assert_eq!(s.json["childSubtreeAvailability"]["constant"], 0);
 
+    // Each tile's bounding region is its tile metadata (TILE_BOUNDING_REGION in the schema).
+    let class = &tileset["schema"]["classes"]["tile"]["properties"]["boundingRegion"];
+    assert_eq!(class["semantic"], "TILE_BOUNDING_REGION");
+    assert_eq!(
+        (&class["componentType"], &class["count"]),
+        (&"FLOAT64".into(), &6.into())
+    );
+    assert_eq!(s.json["tileMetadata"], 0);
+    let table = &s.json["propertyTables"][0];
+    assert_eq!(
+        (&table["class"], table["count"].as_u64()),
+        (&"tile".into(), Some(total as u64))
+    );
+    let view = &s.json["bufferViews"][table["properties"]["boundingRegion"]["values"]
+        .as_u64()
+        .unwrap() as usize];
+    let at = view["byteOffset"].as_u64().unwrap() as usize;
+    assert_eq!(view["byteLength"].as_u64().unwrap() as usize, total * 48);
+    let regions: Vec<[f64; 6]> = s.binary[at..at + total * 48]
+        .chunks_exact(48)
+        .map(|r| {
+            std::array::from_fn(|k| f64::from_le_bytes(r[8 * k..8 * k + 8].try_into().unwrap()))
+        })
+        .collect();
+    let region_of = |level: u8, x: u32, y: u32| {
+        let before: usize = (0..level).map(|l| 1usize << (2 * l)).sum();
+        regions[before + morton(x, y)]
+    };
+    // The tileset's root spans the heights its content does.
+    assert_eq!(
+        (region[4], region[5]),
+        (region_of(0, 0, 0)[4], region_of(0, 0, 0)[5])
+    );
+    // A parent holds its children.
+    for level in 1..levels {
+        for y in 0..1u32 << level {
+            for x in 0..1u32 << level {
+                let (c, p) = (region_of(level, x, y), region_of(level - 1, x / 2, y / 2));
+                assert!(
+                    p[0] <= c[0]
+                        && p[1] <= c[1]
+                        && p[2] >= c[2]
+                        && p[3] >= c[3]
+                        && p[4] <= c[4]
+                        && p[5] >= c[5],
+                    "{level}/{x}/{y}"
+                );
+            }
+        }
+    }
+
     // Every leaf answers with valid content; a leaf without buildings is its ground alone, and
     // the leaves holding buildings draw every building once.
     let mut with_buildings = 0;
@@ -157,6 +208,27 @@ async fn the_tileset_subtree_and_content_follow_3d_tiles_1_1() {
             assert_valid_glb(&c.body);
             let decoded = common::decode::decode_meshopt(&c.body);
             assert_valid_glb(&decoded);
+            // Bounded content: every vertex lies inside its tile's region, as a client reads
+            // it; the region's heights are tight (within 1 m of the content's).
+            let r = region_of(leaf, x, y);
+            let mut heights = (f64::MAX, f64::MIN);
+            for (p, material) in ecef_positions(&decoded) {
+                let (lon, lat, h) = ecef_to_geodetic(p);
+                let (lon, lat) = (lon.to_radians(), lat.to_radians());
+                assert!(
+                    (r[0]..=r[2]).contains(&lon)
+                        && (r[1]..=r[3]).contains(&lat)
+                        && (r[4]..=r[5]).contains(&h),
+                    "a {material} vertex of {uri} at {lon}, {lat}, {h} lies outside {r:?}"
+                );
+                heights = (heights.0.min(h), heights.1.max(h));
+            }
+            assert!(
+                heights.0 - r[4] < 1.0 && r[5] - heights.1 < 1.0,
+                "{uri}: {heights:?} in {r:?}"
+            );
+            // The buildings' rows hold exactly what the feature ids name.
+            common::decode::feature_rows(&c.body);
             if common::decode::triangles(&decoded)
                 .iter()
                 .any(|t| t.material != "ground")

@@ -4,6 +4,7 @@
 use super::key::TileKey;
 use super::scene_cache::SceneCache;
 use super::store::TileStore;
+use super::subtree_cache::SubtreeCache;
 use crate::generation_stats::GenerationStats;
 use crate::metrics::Metrics;
 use axum::http::HeaderValue;
@@ -75,6 +76,9 @@ pub struct TileCache {
     writes: TaskTracker,
     /// Box scenes, in memory; invalidated with the tiles.
     pub scenes: SceneCache,
+    /// 3D Tiles subtrees (their tile regions measured on the content); invalidated with the
+    /// tiles.
+    pub subtrees: SubtreeCache,
 }
 
 impl TileCache {
@@ -101,6 +105,7 @@ impl TileCache {
             metrics,
             // A quarter for box scenes, which count the same invalidations.
             scenes: SceneCache::new(memory_bytes / 4, epoch.clone()),
+            subtrees: SubtreeCache::default(),
             epoch,
             writes: TaskTracker::new(),
         }
@@ -249,6 +254,7 @@ impl TileCache {
         self.epoch.fetch_add(1, Ordering::SeqCst);
         let removed = self.store.delete_overlapping(area).await?;
         self.scenes.invalidate_area(area);
+        self.subtrees.invalidate_all();
         let area = *area;
         if let Err(e) = self
             .memory
@@ -264,6 +270,7 @@ impl TileCache {
         self.epoch.fetch_add(1, Ordering::SeqCst);
         self.memory.invalidate_all();
         self.scenes.invalidate_all();
+        self.subtrees.invalidate_all();
     }
 }
 

@@ -4,28 +4,77 @@
 use super::limits::{run_blocking, within_timeout};
 use crate::error::AppError;
 use crate::state::AppState;
+use bytes::Bytes;
+use citymesh_core::building::roof::RoofShape;
+use citymesh_core::building::set::BuildingSet;
 use citymesh_core::geo::GeoBbox;
-use citymesh_core::tiles3d::{ImplicitLayout, root_subtree};
+use citymesh_core::scene::RoofChoice;
+use citymesh_core::tiles3d::{ImplicitLayout, TileRegions, measure_regions, root_subtree};
+use std::sync::Arc;
 
-/// The tree over `root`, with its height range from the DEM and the tallest building.
+/// The tree over `root`, its bounding region measured on its content (see [`tile_regions`]).
 pub async fn tileset_layout(state: &AppState, root: GeoBbox) -> Result<ImplicitLayout, AppError> {
-    within_timeout(state, async {
-        let buildings = state.source.buildings(&root).await?;
-        let dem = state.dem.clone();
-        run_blocking(state, move || {
-            let model = dem.lookup(&root).model;
-            Ok(ImplicitLayout::measure(root, &model, &buildings.set))
-        })
-        .await
-    })
-    .await
+    let regions = tile_regions(state, root).await?;
+    Ok(ImplicitLayout::from_regions(root, &regions))
 }
 
 /// The binary subtree at the root of the tree over `root` (the tree's only one): every tile
-/// exists, every leaf has content (ground where it holds no building).
-pub async fn subtree(state: &AppState, root: GeoBbox) -> Result<Vec<u8>, AppError> {
-    run_blocking(state, move || {
-        Ok(root_subtree(ImplicitLayout::leaf_level_of(&root)))
-    })
-    .await
+/// exists, every leaf has content (ground where it holds no building), and each tile's region
+/// is its tile metadata.
+pub async fn subtree(state: &AppState, root: GeoBbox) -> Result<Bytes, AppError> {
+    let regions = tile_regions(state, root).await?;
+    Ok(Bytes::from(root_subtree(&regions)))
+}
+
+/// The region of every tile of the tree over `root`, measured on its content (kept per region,
+/// as measuring generates the whole tree). With a roof classifier, untagged roofs may become
+/// gabled or hipped in `roofs=classified` content: the regions hold those roofs too.
+pub async fn tile_regions(state: &AppState, root: GeoBbox) -> Result<Arc<TileRegions>, AppError> {
+    let classified = state.classifier.is_some();
+    let key = (root.to_string(), classified);
+    state
+        .tiles
+        .subtrees
+        .get_or_make(key, async {
+            within_timeout(state, async {
+                let buildings = state.source.buildings(&root).await?;
+                let dem = state.dem.clone();
+                run_blocking(state, move || {
+                    let variants = if classified {
+                        roof_variants(&buildings.set)
+                    } else {
+                        Vec::new()
+                    };
+                    let regions = measure_regions(
+                        &root,
+                        ImplicitLayout::leaf_level_of(&root),
+                        &buildings.set,
+                        &|b| dem.lookup(b).model,
+                        &variants,
+                        &|| false,
+                    )
+                    .ok_or_else(|| AppError::internal("measuring the tiles stopped"))?;
+                    Ok(Arc::new(regions))
+                })
+                .await
+            })
+            .await
+        })
+        .await
+}
+
+/// Every untagged roof as each pitched shape the classifier can choose.
+pub fn roof_variants(set: &BuildingSet) -> Vec<RoofChoice> {
+    [RoofShape::Gabled, RoofShape::Hipped]
+        .into_iter()
+        .map(|shape| {
+            let mut choice = RoofChoice::new();
+            for record in set.records() {
+                if !record.tags.contains_key("roof:shape") {
+                    choice.insert(record.id, shape, 1.0);
+                }
+            }
+            choice
+        })
+        .collect()
 }

@@ -14,6 +14,7 @@ use crate::geo::{GeoBbox, LocalFrame};
 use crate::mesh::{EncodedGlb, Encoding, Mesh, Placement, encode_glb};
 use crate::osm::BuildingRecord;
 use crate::terrain::{ElevationModel, GroundReport, build_ground};
+use crate::tiles3d::Region;
 use std::ops::Range;
 
 /// How buildings meet the border of the scene's box.
@@ -152,6 +153,17 @@ impl Scene {
             encoding,
             &self.buildings.generated_ids(),
             Some(&table),
+        )
+    }
+
+    /// Where the scene's vertices lie on the Earth: longitude and latitude in degrees, heights
+    /// above the ellipsoid (as the ECEF placement puts them), or `None` for an empty scene.
+    pub fn geographic_extent(&self) -> Option<Region> {
+        Region::of_points(
+            self.mesh
+                .positions
+                .iter()
+                .map(|&p| self.frame.to_geographic(p)),
         )
     }
 

@@ -3,6 +3,7 @@
 //! Availability bitstreams list each level's tiles in Morton order, levels one after another,
 //! bits least significant first within a byte.
 
+use super::regions::TileRegions;
 use crate::geo::{ImplicitTile, morton};
 use serde_json::{Value, json};
 
@@ -29,32 +30,43 @@ fn availability(bits: &[bool]) -> Availability {
     Availability::Bits(bytes, count)
 }
 
-/// The one subtree of a tree whose content sits at `leaf_level`: every tile exists and every
-/// leaf has content (its ground, with the buildings whose group's point it holds), so the ground
-/// has no notches where a leaf holds no building.
-pub fn root_subtree(leaf_level: u8) -> Vec<u8> {
+/// The class of the subtree's tile metadata in the tileset's schema: each tile's bounding region.
+pub const TILE_CLASS: &str = "tile";
+/// Its one property, with the semantic `TILE_BOUNDING_REGION`.
+pub const TILE_REGION_PROPERTY: &str = "boundingRegion";
+
+/// The one subtree of a tree whose content sits at `regions.leaf_level`: every tile exists and
+/// every leaf has content (its ground, with the buildings whose group's point it holds), so the
+/// ground has no notches where a leaf holds no building. Each tile's bounding region, measured
+/// on its content, is its tile metadata.
+pub fn root_subtree(regions: &TileRegions) -> Vec<u8> {
     let root = ImplicitTile {
         level: 0,
         x: 0,
         y: 0,
     };
+    let leaf_level = regions.leaf_level;
     write_subtree(
         root,
         leaf_level + 1,
         &|_| true,
         &|t| t.level == leaf_level,
         &|_| false,
+        Some(regions),
     )
 }
 
 /// The subtree rooted at `root` with `levels` levels: `tile` and `content` say which tiles
-/// (absolute coordinates) exist and have content; `child` which subtrees below it exist.
+/// (absolute coordinates) exist and have content; `child` which subtrees below it exist. With
+/// `regions` (for a subtree at the tree's root holding every tile), each tile's region is its
+/// tile metadata.
 pub fn write_subtree(
     root: ImplicitTile,
     levels: u8,
     tile: &dyn Fn(ImplicitTile) -> bool,
     content: &dyn Fn(ImplicitTile) -> bool,
     child: &dyn Fn(ImplicitTile) -> bool,
+    regions: Option<&TileRegions>,
 ) -> Vec<u8> {
     let bits_of = |level: u8, f: &dyn Fn(ImplicitTile) -> bool| -> Vec<bool> {
         let n = 1u32 << level;
@@ -98,11 +110,33 @@ pub fn write_subtree(
     while !binary.len().is_multiple_of(8) {
         binary.push(0);
     }
+    // Tile metadata: one row per available tile, in availability order (level by level, Morton
+    // order within a level), which is the order the regions are kept in.
+    let available = tiles.iter().filter(|b| **b).count();
+    let metadata = regions.filter(|r| r.all().count() == available && available == tiles.len());
+    let table = metadata.map(|r| {
+        let at = binary.len();
+        for region in r.all() {
+            for v in region.to_radians() {
+                binary.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+        views.push(json!({"buffer": 0, "byteOffset": at, "byteLength": binary.len() - at}));
+        json!([{
+            "class": TILE_CLASS,
+            "count": available,
+            "properties": {TILE_REGION_PROPERTY: {"values": views.len() - 1}},
+        }])
+    });
     let mut doc = json!({
         "tileAvailability": tile_entry,
         "contentAvailability": [content_entry],
         "childSubtreeAvailability": child_entry,
     });
+    if let Some(table) = table {
+        doc["propertyTables"] = table;
+        doc["tileMetadata"] = json!(0);
+    }
     if !binary.is_empty() {
         doc["buffers"] = json!([{"byteLength": binary.len()}]);
         doc["bufferViews"] = Value::Array(views);

@@ -1,18 +1,10 @@
 //! The tileset JSON of a region with implicit quadtree tiling.
 
+use super::regions::TileRegions;
+use super::subtree::{TILE_CLASS, TILE_REGION_PROPERTY};
 use crate::building::feature::BUILDING_CLASS;
-use crate::building::set::BuildingSet;
-use crate::building::tags::parse_length;
-use crate::geo::{GeoBbox, LocalFrame};
-use crate::terrain::ElevationModel;
+use crate::geo::{GeoBbox, ImplicitTile, LocalFrame};
 use serde_json::{Value, json};
-
-/// Ground samples per side when measuring a region's height range.
-const HEIGHT_SAMPLES: u32 = 33;
-/// Height assumed for the tallest building when none is tagged taller (metres).
-const MIN_TALLEST_M: f64 = 60.0;
-/// Slack below the lowest ground and above the highest roof (metres).
-const HEIGHT_SLACK_M: f64 = 20.0;
 
 /// Content tiles are at most this wide (metres).
 pub const LEAF_SIZE_M: f64 = 400.0;
@@ -39,27 +31,21 @@ impl ImplicitLayout {
         }
     }
 
-    /// The tree over `root` with its height range: the ground sampled on a 33 x 33 grid of
-    /// `model`, and the tallest tagged building of `set` there (at least 60 m), with 20 m of slack.
-    pub fn measure(root: GeoBbox, model: &ElevationModel, set: &BuildingSet) -> Self {
-        let (mut lo, mut hi) = (f64::MAX, f64::MIN);
-        let last = f64::from(HEIGHT_SAMPLES - 1);
-        for i in 0..HEIGHT_SAMPLES {
-            for j in 0..HEIGHT_SAMPLES {
-                let lon = root.min_lon() + (root.max_lon() - root.min_lon()) * f64::from(i) / last;
-                let lat = root.min_lat() + (root.max_lat() - root.min_lat()) * f64::from(j) / last;
-                let h = model.ground_height(lon, lat);
-                lo = lo.min(h);
-                hi = hi.max(h);
-            }
+    /// The tree over `root` with the height range its content spans (the root tile's measured
+    /// region).
+    pub fn from_regions(root: GeoBbox, regions: &TileRegions) -> Self {
+        let whole = regions.get(ImplicitTile {
+            level: 0,
+            x: 0,
+            y: 0,
+        });
+        let (lo, hi) = whole.map_or((0.0, 0.0), |r| (r.min_height, r.max_height));
+        Self {
+            root,
+            leaf_level: regions.leaf_level,
+            min_height: lo,
+            max_height: hi,
         }
-        let tallest = set
-            .clusters_intersecting(&root)
-            .iter()
-            .flat_map(|c| set.cluster_records(c))
-            .filter_map(|r| r.tags.get("height").and_then(|h| parse_length(h)))
-            .fold(MIN_TALLEST_M, f64::max);
-        Self::new(root, lo - HEIGHT_SLACK_M, hi + tallest + HEIGHT_SLACK_M)
     }
 
     /// The level whose tiles are at most [`LEAF_SIZE_M`] wide: it depends on the region alone.
@@ -87,6 +73,25 @@ impl ImplicitLayout {
     }
 }
 
+/// The tileset's schema: the buildings' class (the content's property tables) and the class of
+/// the subtrees' tile metadata, each tile's bounding region.
+fn schema() -> Value {
+    let mut schema = BUILDING_CLASS.schema();
+    schema["id"] = json!("citymesh_tileset");
+    schema["classes"][TILE_CLASS] = json!({
+        "description": "A tile of the implicit tree",
+        "properties": {TILE_REGION_PROPERTY: {
+            "description": "The tile's bounding region, measured on its content (radians, metres)",
+            "type": "SCALAR",
+            "componentType": "FLOAT64",
+            "array": true,
+            "count": 6,
+            "semantic": "TILE_BOUNDING_REGION",
+        }},
+    });
+    schema
+}
+
 /// The tileset; `prefix` is put before the content and subtree templates (relative URIs). It
 /// declares the schema of the buildings' property tables in its content.
 pub fn tileset_json(layout: &ImplicitLayout, prefix: &str) -> Value {
@@ -101,7 +106,7 @@ pub fn tileset_json(layout: &ImplicitLayout, prefix: &str) -> Value {
     ];
     json!({
         "asset": {"version": "1.1", "generator": concat!("citymesh ", env!("CARGO_PKG_VERSION"))},
-        "schema": BUILDING_CLASS.schema(),
+        "schema": schema(),
         "geometricError": layout.root_error() * 2.0,
         "root": {
             "boundingVolume": {"region": region},

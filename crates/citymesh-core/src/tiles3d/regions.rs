@@ -1,0 +1,278 @@
+//! Bounding regions of every tile of the implicit tree, measured on its content: a leaf's region
+//! is the extent of its ground and of the whole buildings it holds (which may reach past the
+//! tile's square), a parent's the union of its children's. The subtree carries them as tile
+//! metadata with the semantic `TILE_BOUNDING_REGION`, so a client's bounding volume encloses
+//! the content and its heights are tight.
+
+use crate::building::set::BuildingSet;
+use crate::geo::{GeoBbox, ImplicitTile, morton};
+use crate::scene::{RoofChoice, SceneArea, SceneRequest};
+use crate::terrain::ElevationModel;
+
+/// Slack around measured content, metres: vertices are stored as f32 or in quantization steps
+/// of a few millimetres, and the region must still hold them.
+const SLACK_M: f64 = 0.05;
+
+/// Metres per degree of latitude (a lower bound over the ellipsoid), for the slack in degrees.
+const MIN_METRES_PER_DEGREE: f64 = 110_500.0;
+
+/// A region: west, south, east, north in degrees, heights in metres above the ellipsoid.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Region {
+    pub west: f64,
+    pub south: f64,
+    pub east: f64,
+    pub north: f64,
+    pub min_height: f64,
+    pub max_height: f64,
+}
+
+impl Region {
+    /// A box with a height range.
+    pub fn of_bbox(b: &GeoBbox, min_height: f64, max_height: f64) -> Self {
+        Self {
+            west: b.min_lon(),
+            south: b.min_lat(),
+            east: b.max_lon(),
+            north: b.max_lat(),
+            min_height,
+            max_height,
+        }
+    }
+
+    /// The smallest region holding `points` (lon, lat, height), if there are any.
+    pub fn of_points(points: impl IntoIterator<Item = (f64, f64, f64)>) -> Option<Self> {
+        let mut r: Option<Region> = None;
+        for (lon, lat, h) in points {
+            let p = Region {
+                west: lon,
+                south: lat,
+                east: lon,
+                north: lat,
+                min_height: h,
+                max_height: h,
+            };
+            r = Some(r.map_or(p, |r| r.union(&p)));
+        }
+        r
+    }
+
+    /// The smallest region holding both.
+    pub fn union(&self, o: &Region) -> Region {
+        Region {
+            west: self.west.min(o.west),
+            south: self.south.min(o.south),
+            east: self.east.max(o.east),
+            north: self.north.max(o.north),
+            min_height: self.min_height.min(o.min_height),
+            max_height: self.max_height.max(o.max_height),
+        }
+    }
+
+    /// Whether the point lies inside (borders included).
+    pub fn contains(&self, lon: f64, lat: f64, h: f64) -> bool {
+        (self.west..=self.east).contains(&lon)
+            && (self.south..=self.north).contains(&lat)
+            && (self.min_height..=self.max_height).contains(&h)
+    }
+
+    /// The region grown by `metres` on every side.
+    pub fn grown(&self, metres: f64) -> Region {
+        let lat = metres / MIN_METRES_PER_DEGREE;
+        let cos = self.north.abs().max(self.south.abs()).to_radians().cos();
+        let lon = lat / cos.max(1e-6);
+        Region {
+            west: self.west - lon,
+            south: self.south - lat,
+            east: self.east + lon,
+            north: self.north + lat,
+            min_height: self.min_height - metres,
+            max_height: self.max_height + metres,
+        }
+    }
+
+    /// As 3D Tiles writes a region: radians, then metres.
+    pub fn to_radians(&self) -> [f64; 6] {
+        [
+            self.west.to_radians(),
+            self.south.to_radians(),
+            self.east.to_radians(),
+            self.north.to_radians(),
+            self.min_height,
+            self.max_height,
+        ]
+    }
+}
+
+/// The regions of every tile of a tree whose content sits at `leaf_level`, level by level, each
+/// level in Morton order (the order of the subtree's availability).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TileRegions {
+    pub leaf_level: u8,
+    levels: Vec<Vec<Region>>,
+}
+
+impl TileRegions {
+    /// From each leaf's measured content region (`None`: no content, the tile's square at
+    /// `empty` heights), with [`SLACK_M`] around it; parents hold their children.
+    pub fn new(
+        root: &GeoBbox,
+        leaf_level: u8,
+        leaf: &mut dyn FnMut(ImplicitTile) -> Option<Region>,
+        empty: (f64, f64),
+    ) -> Self {
+        let n = 1u32 << leaf_level;
+        let mut leaves = vec![None; (n as usize) * (n as usize)];
+        for x in 0..n {
+            for y in 0..n {
+                let t = ImplicitTile {
+                    level: leaf_level,
+                    x,
+                    y,
+                };
+                let square = || {
+                    let [w, s, e, no] = t.bounds(root);
+                    Region {
+                        west: w,
+                        south: s,
+                        east: e,
+                        north: no,
+                        min_height: empty.0,
+                        max_height: empty.1,
+                    }
+                };
+                let r = leaf(t).unwrap_or_else(square).grown(SLACK_M);
+                leaves[morton(x, y) as usize] = Some(r);
+            }
+        }
+        let mut levels = vec![leaves.into_iter().flatten().collect::<Vec<Region>>()];
+        for _ in 0..leaf_level {
+            let Some(below) = levels.last() else { break };
+            // In Morton order a parent's four children are consecutive.
+            let up: Vec<Region> = below
+                .chunks_exact(4)
+                .map(|c| c[0].union(&c[1]).union(&c[2]).union(&c[3]))
+                .collect();
+            levels.push(up);
+        }
+        levels.reverse();
+        Self { leaf_level, levels }
+    }
+
+    /// The region of a tile of the tree.
+    pub fn get(&self, t: ImplicitTile) -> Option<Region> {
+        self.levels
+            .get(usize::from(t.level))?
+            .get(morton(t.x, t.y) as usize)
+            .copied()
+    }
+
+    /// Every tile's region, level by level in Morton order.
+    pub fn all(&self) -> impl Iterator<Item = &Region> {
+        self.levels.iter().flatten()
+    }
+}
+
+/// The regions of the tree over `root` with content at `leaf_level`, measured by generating each
+/// leaf's content from `set` on the model `model_for` gives for its terrain box, once per roof
+/// variant in `variants` (none: roofs from tags alone), so that content made with any of them
+/// lies inside. `stop` is asked before each leaf; `None` when it said so.
+pub fn measure_regions(
+    root: &GeoBbox,
+    leaf_level: u8,
+    set: &BuildingSet,
+    model_for: &dyn Fn(&GeoBbox) -> ElevationModel,
+    variants: &[RoofChoice],
+    stop: &dyn Fn() -> bool,
+) -> Option<TileRegions> {
+    let mut stopped = false;
+    let regions = TileRegions::new(
+        root,
+        leaf_level,
+        &mut |tile| {
+            if stopped || stop() {
+                stopped = true;
+                return None;
+            }
+            let request = SceneArea::Implicit { root: *root, tile }
+                .request(set)
+                .ok()?;
+            let model = model_for(&request.terrain_bbox());
+            let extent = |r: &SceneRequest<'_>| r.scene(&model).geographic_extent();
+            let mut region = extent(&request);
+            for choice in variants {
+                let other = extent(&request.clone().with_roofs(choice));
+                region = match (region, other) {
+                    (Some(a), Some(b)) => Some(a.union(&b)),
+                    (a, b) => a.or(b),
+                };
+            }
+            region
+        },
+        (0.0, 0.0),
+    );
+    (!stopped).then_some(regions)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parents_hold_their_children_and_leaves_their_content() {
+        let root = GeoBbox::new(8.0, 49.0, 8.02, 49.02).unwrap();
+        // One leaf holds a building reaching 10 m past its east side, 30 m high.
+        let tall = ImplicitTile {
+            level: 2,
+            x: 1,
+            y: 2,
+        };
+        let regions = TileRegions::new(
+            &root,
+            2,
+            &mut |t| {
+                let [w, s, e, n] = t.bounds(&root);
+                let east = if t == tall { e + 10.0 / 73_000.0 } else { e };
+                let top = if t == tall { 130.0 } else { 100.0 };
+                Some(Region {
+                    west: w,
+                    south: s,
+                    east,
+                    north: n,
+                    min_height: 90.0,
+                    max_height: top,
+                })
+            },
+            (0.0, 0.0),
+        );
+        let leaf = regions.get(tall).unwrap();
+        assert!(leaf.max_height >= 130.0 && leaf.max_height <= 130.1);
+        assert!(leaf.east > tall.bounds(&root)[2] + 9.0 / 73_000.0);
+        let root_region = regions
+            .get(ImplicitTile {
+                level: 0,
+                x: 0,
+                y: 0,
+            })
+            .unwrap();
+        assert!(root_region.max_height >= 130.0 && root_region.min_height <= 90.0);
+        assert_eq!(regions.all().count(), 1 + 4 + 16);
+        // The parent of the tall leaf holds it; its sibling parent does not reach as high.
+        let parent = regions
+            .get(ImplicitTile {
+                level: 1,
+                x: 0,
+                y: 1,
+            })
+            .unwrap();
+        assert!(parent.max_height >= 130.0);
+        let other = regions
+            .get(ImplicitTile {
+                level: 1,
+                x: 1,
+                y: 0,
+            })
+            .unwrap();
+        assert!(other.max_height < 101.0);
+    }
+}
