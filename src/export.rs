@@ -24,6 +24,11 @@ use std::time::Instant;
 /// Temporary files end in this; a rerun removes them.
 const PARTIAL: &str = ".partial";
 
+/// A content file and the area it holds.
+type Content = (PathBuf, SceneArea);
+/// A file that makes the tree whole, and its bytes.
+type Finishing = (PathBuf, Vec<u8>);
+
 /// What an export did.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct ExportSummary {
@@ -51,7 +56,7 @@ pub async fn run(state: &AppState, args: &ExportArgs) -> anyhow::Result<ExportSu
     let started = Instant::now();
 
     // The content files, then the files that make the tree whole (written last).
-    let (content, last): (Vec<(PathBuf, SceneArea)>, Vec<(PathBuf, Vec<u8>)>) = match args.format {
+    let (content, last): (Vec<Content>, Vec<Finishing>) = match args.format {
         ExportFormat::Tiles3d => {
             let layout = pipeline::tileset_layout(state, bbox)
                 .await
@@ -97,11 +102,9 @@ pub async fn run(state: &AppState, args: &ExportArgs) -> anyhow::Result<ExportSu
         files: total,
         ..ExportSummary::default()
     };
-    let workers = args.workers.unwrap_or_else(|| {
-        std::thread::available_parallelism()
-            .map(usize::from)
-            .unwrap_or(1)
-    });
+    let workers = args
+        .workers
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, usize::from));
     let mut writes =
         futures_util::stream::iter(content.into_iter().map(|(path, area)| async move {
             if path.exists() {
