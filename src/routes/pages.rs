@@ -16,9 +16,13 @@ const VIEWER_JS: &str = include_str!("pages/viewer.js");
 /// What every page shows when its libraries do not load, shared by the three pages.
 const ASSETS_MISSING_JS: &str = include_str!("pages/assets-missing.js");
 
-/// A page with the shared script put in its place.
+/// The panel of a picked building's properties, shared by the two 3D Tiles pages.
+const PICKED_PANEL_JS: &str = include_str!("pages/picked-panel.js");
+
+/// A page with the shared scripts put in their places.
 fn page(html: &str) -> String {
     html.replace("__ASSETS_MISSING__", ASSETS_MISSING_JS)
+        .replace("__PICKED_PANEL__", PICKED_PANEL_JS)
 }
 
 static VIEWER_HTML: LazyLock<String> = LazyLock::new(|| page(include_str!("pages/viewer.html")));

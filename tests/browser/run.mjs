@@ -274,6 +274,29 @@ try {
   await check('3d-tiles-renderer: picking works on a static export served by a plain file server', async () =>
     pickBuilding(karlsruhe.url, '3dtiles-renderer', 'citymeshTilesRenderer', await exportServed()));
 
+  // What a client loads to show a 5 km x 5 km area from above (the README quotes it): the
+  // tileset over a 4.9 km square around Kirchfeld (under the 25 km² limit), CesiumJS at 7 km
+  // looking straight down.
+  await check('CesiumJS: a 5 km x 5 km overview from above loads (requests and bytes printed)', async () => {
+    const bbox = '8.366,49.031,8.433,49.075';
+    const page = await browser.newPage({ viewport: { width: 1000, height: 700 } });
+    let requests = 0, bytes = 0;
+    page.on('response', (r) => {
+      if (!/\.glb(\?|$)/.test(r.url()) || r.status() !== 200) return;
+      requests++;
+      bytes += Number(r.headers()['content-length'] ?? 0);
+    });
+    await page.goto(`${karlsruhe.url}/cesium?bbox=${bbox}&lon=8.3995&lat=49.0525&height=7000&heading=0&pitch=-90`);
+    await page.waitForFunction(() => window.citymeshCesium && (window.citymeshCesium.ready || window.citymeshCesium.errors.length), null, { timeout: 300000, polling: 250 });
+    await page.waitForTimeout(1000);
+    const s = await page.evaluate(() => window.citymeshCesium);
+    await page.screenshot({ path: `${artifacts}/cesium-overview.png` });
+    if (s.errors.length) throw new Error(s.errors.join('\n'));
+    if (!(requests > 0)) throw new Error('no content loaded');
+    console.log(`  overview of ${bbox}: ${requests} content requests, ${(bytes / 1e6).toFixed(2)} MB`);
+    await page.close();
+  });
+
   await check('3d-tiles-renderer opens at the camera in the URL and keeps the camera in the URL', async () => {
     const want = { lon: 8.3995, lat: 49.0525, height: 1200, heading: 30, pitch: -50 };
     const t = await open(`${karlsruhe.url}/3dtiles-renderer?${new URLSearchParams(Object.entries(want).map(([k, v]) => [k, String(v)]))}`,
