@@ -61,12 +61,16 @@ pub async fn run(state: &AppState, args: &ExportArgs) -> anyhow::Result<ExportSu
             let layout = pipeline::tileset_layout(state, bbox)
                 .await
                 .map_err(app_error)?;
-            let level = layout.leaf_level;
-            let side = 1u32 << level;
-            let content = (0..side)
-                .flat_map(|x| (0..side).map(move |y| ImplicitTile { level, x, y }))
+            // Every level has content: the leaves in full, the coarser levels simplified.
+            let content = (0..=layout.leaf_level)
+                .flat_map(|level| {
+                    let side = 1u32 << level;
+                    (0..side)
+                        .flat_map(move |x| (0..side).map(move |y| ImplicitTile { level, x, y }))
+                })
                 .map(|tile| {
-                    let path = out.join(format!("content/{level}/{}/{}.glb", tile.x, tile.y));
+                    let path =
+                        out.join(format!("content/{}/{}/{}.glb", tile.level, tile.x, tile.y));
                     (path, SceneArea::Implicit { root: bbox, tile })
                 })
                 .collect();

@@ -59,12 +59,14 @@ fn an_export_killed_half_way_and_run_again_is_byte_identical_to_one_run() {
     );
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
-        stdout.contains("exported 1026 files (1026 written now, 0 kept)"),
+        stdout.contains("exported 1367 files (1367 written now, 0 kept)"),
         "{stdout}"
     );
     let expected = tree(&whole);
-    // 32 x 32 leaves of at most 400 m, each with content, plus the subtree and the tileset.
-    assert_eq!(expected.len(), 1026);
+    // 32 x 32 leaves of at most 400 m and the 341 coarser tiles above them, each with content,
+    // plus the subtree and the tileset.
+    assert_eq!(expected.len(), 1367);
+    assert!(expected.contains_key("content/0/0/0.glb"));
     assert!(expected.contains_key("tileset.json"));
     assert!(expected.contains_key("subtrees/0/0/0.subtree"));
     assert!(expected.contains_key("content/5/31/31.glb"));
@@ -85,7 +87,7 @@ fn an_export_killed_half_way_and_run_again_is_byte_identical_to_one_run() {
     child.wait().unwrap();
     let partial = tree(&resumed);
     assert!(
-        !partial.contains_key("tileset.json") && partial.len() < 1026 && partial.len() >= 513,
+        !partial.contains_key("tileset.json") && partial.len() < 1367 && partial.len() >= 683,
         "the kill came at {} files",
         partial.len()
     );
@@ -103,8 +105,8 @@ fn an_export_killed_half_way_and_run_again_is_byte_identical_to_one_run() {
     let kept = partial.keys().filter(|k| !k.ends_with(".partial")).count();
     assert!(
         stdout.contains(&format!(
-            "exported 1026 files ({} written now, {kept} kept)",
-            1026 - kept
+            "exported 1367 files ({} written now, {kept} kept)",
+            1367 - kept
         )),
         "{stdout}"
     );

@@ -127,18 +127,7 @@ async fn the_tileset_subtree_and_content_follow_3d_tiles_1_1() {
     let contents = bits(&s, &s.json["contentAvailability"][0], total);
     let leaf_offset: usize = (0..leaf).map(|l| 1usize << (2 * l)).sum();
     assert!(tiles.iter().all(|b| *b), "every tile is available");
-    assert!(
-        contents[..leaf_offset].iter().all(|b| !b),
-        "content only at the leaves"
-    );
-    for y in 0..n {
-        for x in 0..n {
-            assert!(
-                contents[leaf_offset + morton(x, y)],
-                "content bit of {leaf}/{x}/{y}"
-            );
-        }
-    }
+    assert!(contents.iter().all(|b| *b), "every tile has content");
     // One subtree holds every level: no child subtrees.
     assert_eq!(s.json["childSubtreeAvailability"]["constant"], 0);
 
@@ -170,6 +159,35 @@ async fn the_tileset_subtree_and_content_follow_3d_tiles_1_1() {
         let before: usize = (0..level).map(|l| 1usize << (2 * l)).sum();
         regions[before + morton(x, y)]
     };
+    // Geometric errors (TILE_GEOMETRIC_ERROR): 0 at the leaves, a parent's at least its
+    // children's.
+    let error_view = &s.json["bufferViews"][table["properties"]["geometricError"]["values"]
+        .as_u64()
+        .unwrap() as usize];
+    let at = error_view["byteOffset"].as_u64().unwrap() as usize;
+    let errors: Vec<f64> = s.binary[at..at + total * 8]
+        .chunks_exact(8)
+        .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
+        .collect();
+    let error_of = |level: u8, x: u32, y: u32| {
+        let before: usize = (0..level).map(|l| 1usize << (2 * l)).sum();
+        errors[before + morton(x, y)]
+    };
+    assert_eq!(
+        tileset["schema"]["classes"]["tile"]["properties"]["geometricError"]["semantic"],
+        "TILE_GEOMETRIC_ERROR"
+    );
+    assert!(errors[leaf_offset..].iter().all(|e| *e == 0.0));
+    for level in 1..levels {
+        for y in 0..1u32 << level {
+            for x in 0..1u32 << level {
+                assert!(error_of(level - 1, x / 2, y / 2) >= error_of(level, x, y));
+            }
+        }
+    }
+    assert!(error_of(0, 0, 0) > 0.0);
+    // The tileset's root error is larger, so clients always refine into the tree.
+    assert!(root["geometricError"].as_f64().unwrap() > error_of(0, 0, 0));
     // The tileset's root spans the heights its content does.
     assert_eq!(
         (region[4], region[5]),
@@ -193,47 +211,53 @@ async fn the_tileset_subtree_and_content_follow_3d_tiles_1_1() {
         }
     }
 
-    // Every leaf answers with valid content; a leaf without buildings is its ground alone, and
-    // the leaves holding buildings draw every building once.
+    // Every tile answers with valid content (coarser above the leaves); a leaf without
+    // buildings is its ground alone.
     let mut with_buildings = 0;
-    for y in 0..n {
-        for x in 0..n {
-            let uri = content_uri
-                .replace("{level}", &leaf.to_string())
-                .replace("{x}", &x.to_string())
-                .replace("{y}", &y.to_string());
-            let c = get(&app, &format!("/3dtiles/{uri}")).await;
-            assert_eq!(c.status, StatusCode::OK, "{uri}");
-            // Meshopt by default: valid as sent, and valid in full once decoded.
-            assert_valid_glb(&c.body);
-            let decoded = common::decode::decode_meshopt(&c.body);
-            assert_valid_glb(&decoded);
-            // Bounded content: every vertex lies inside its tile's region, as a client reads
-            // it; the region's heights are tight (within 1 m of the content's).
-            let r = region_of(leaf, x, y);
-            let mut heights = (f64::MAX, f64::MIN);
-            for (p, material) in ecef_positions(&decoded) {
-                let (lon, lat, h) = ecef_to_geodetic(p);
-                let (lon, lat) = (lon.to_radians(), lat.to_radians());
-                assert!(
-                    (r[0]..=r[2]).contains(&lon)
-                        && (r[1]..=r[3]).contains(&lat)
-                        && (r[4]..=r[5]).contains(&h),
-                    "a {material} vertex of {uri} at {lon}, {lat}, {h} lies outside {r:?}"
-                );
-                heights = (heights.0.min(h), heights.1.max(h));
-            }
-            assert!(
-                heights.0 - r[4] < 1.0 && r[5] - heights.1 < 1.0,
-                "{uri}: {heights:?} in {r:?}"
-            );
-            // The buildings' rows hold exactly what the feature ids name.
-            common::decode::feature_rows(&c.body);
-            if common::decode::triangles(&decoded)
-                .iter()
-                .any(|t| t.material != "ground")
-            {
-                with_buildings += 1;
+    let mut rows_at = vec![0usize; usize::from(levels)];
+    for level in 0..levels {
+        for y in 0..1u32 << level {
+            for x in 0..1u32 << level {
+                let uri = content_uri
+                    .replace("{level}", &level.to_string())
+                    .replace("{x}", &x.to_string())
+                    .replace("{y}", &y.to_string());
+                let c = get(&app, &format!("/3dtiles/{uri}")).await;
+                assert_eq!(c.status, StatusCode::OK, "{uri}");
+                // Meshopt by default: valid as sent, and valid in full once decoded.
+                assert_valid_glb(&c.body);
+                let decoded = common::decode::decode_meshopt(&c.body);
+                assert_valid_glb(&decoded);
+                // Bounded content: every vertex lies inside its tile's region, as a client
+                // reads it; a leaf's heights are tight (within 1 m of its content's).
+                let r = region_of(level, x, y);
+                let mut heights = (f64::MAX, f64::MIN);
+                for (p, material) in ecef_positions(&decoded) {
+                    let (lon, lat, h) = ecef_to_geodetic(p);
+                    let (lon, lat) = (lon.to_radians(), lat.to_radians());
+                    assert!(
+                        (r[0]..=r[2]).contains(&lon)
+                            && (r[1]..=r[3]).contains(&lat)
+                            && (r[4]..=r[5]).contains(&h),
+                        "a {material} vertex of {uri} at {lon}, {lat}, {h} lies outside {r:?}"
+                    );
+                    heights = (heights.0.min(h), heights.1.max(h));
+                }
+                if level == leaf {
+                    assert!(
+                        heights.0 - r[4] < 1.0 && r[5] - heights.1 < 1.0,
+                        "{uri}: {heights:?} in {r:?}"
+                    );
+                }
+                // The buildings' rows hold exactly what the feature ids name.
+                rows_at[usize::from(level)] += common::decode::feature_rows(&c.body).len();
+                if level == leaf
+                    && common::decode::triangles(&decoded)
+                        .iter()
+                        .any(|t| t.material != "ground")
+                {
+                    with_buildings += 1;
+                }
             }
         }
     }
@@ -242,13 +266,30 @@ async fn the_tileset_subtree_and_content_follow_3d_tiles_1_1() {
         "{with_buildings} of {}",
         n * n
     );
-    // Coarser levels have no content.
-    let coarse = content_uri
-        .replace("{level}", "0")
+    // The leaves draw every building once; coarser levels leave the small ones out, fewer the
+    // coarser, and level 0 still draws some.
+    // 3,026 records, 7 of them outlines wholly covered by their parts (only the parts drawn).
+    assert_eq!(set.records().len(), 3026);
+    assert_eq!(rows_at[usize::from(leaf)], 3019);
+    for level in 0..leaf {
+        assert!(
+            rows_at[usize::from(level)] > 0
+                && rows_at[usize::from(level)] <= rows_at[usize::from(level) + 1],
+            "{rows_at:?}"
+        );
+    }
+    assert!(rows_at[0] < rows_at[usize::from(leaf)], "{rows_at:?}");
+    println!(
+        "buildings drawn per level: {rows_at:?}; root error {} m",
+        error_of(0, 0, 0)
+    );
+    // Below the leaves there is nothing.
+    let below = content_uri
+        .replace("{level}", &levels.to_string())
         .replace("{x}", "0")
         .replace("{y}", "0");
     assert_eq!(
-        get(&app, &format!("/3dtiles/{coarse}")).await.status,
+        get(&app, &format!("/3dtiles/{below}")).await.status,
         StatusCode::NOT_FOUND
     );
 }

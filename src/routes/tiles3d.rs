@@ -113,7 +113,8 @@ fn parse_implicit(level: &str, x: &str, y: &str, ext: &str) -> Result<ImplicitTi
 ///
 /// The root's bounding volume is a `region` (radians; heights from the DEM and the buildings);
 /// each level halves it in longitude and latitude (y counted from the south); content (glb,
-/// ECEF) sits at the deepest level, tiles of at most 400 m. Subtrees are binary. Without `bbox`,
+/// ECEF) at every level: the leaves (tiles of at most 400 m) in full detail, coarser levels
+/// simplified (small buildings left out, roofs flattened, a grid ground). Subtrees are binary. Without `bbox`,
 /// the region is the extent of the served buildings (the demo city, or the `--osm` files); a
 /// server that fetches data by area needs it.
 #[utoipa::path(get, path = "/3dtiles/tileset.json", tag = "3d tiles", params(TilesetQuery),
@@ -183,7 +184,7 @@ pub async fn subtree(
 /// node matrix), the ground of the tile and its buildings.
 #[utoipa::path(get, path = "/3dtiles/area/{bbox}/content/{level}/{x}/{y}", tag = "3d tiles",
     params(("bbox" = String, Path, description = "The tree's region, minLon,minLat,maxLon,maxLat", example = "8.400,49.010,8.409,49.017"),
-           ("level" = u8, Path, description = "Level (content sits at the deepest level only)", minimum = 0, maximum = 30),
+           ("level" = u8, Path, description = "Level (every level has content; coarser above the leaves)", minimum = 0, maximum = 30),
            ("x" = u32, Path, description = "Column at that level, from the west", minimum = 0),
            ("y" = u32, Path, description = "Row at that level, from the south", minimum = 0),
            TileQuery),
@@ -197,7 +198,7 @@ pub async fn subtree(
             )),
         (status = 304, description = "Not modified: the If-None-Match ETag is current"),
         (status = 400, description = "The region or a coordinate is malformed, or the region too large", body = ErrorBody),
-        (status = 404, description = "The tile has no content, or the format is not .glb", body = ErrorBody),
+        (status = 404, description = "The tile is below the leaves, or the format is not .glb", body = ErrorBody),
         (status = 500, description = "An internal failure; the server log has the cause", body = ErrorBody),
         (status = 502, description = "Overpass failed or sent an incomplete answer; nothing was stored", body = ErrorBody),
         (status = 503, description = "Overpass is rate limiting, or every generation slot is busy; see Retry-After", body = ErrorBody),
@@ -211,10 +212,10 @@ pub async fn content(
 ) -> Result<Response, AppError> {
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
     let (root, tile) = implicit_request(&state, path, ".glb")?;
-    if tile.level != ImplicitLayout::leaf_level_of(&root) {
+    if tile.level > ImplicitLayout::leaf_level_of(&root) {
         return Err(AppError::not_found(
             "no_content",
-            "this tile has no content (see the subtree's availability)",
+            "this tile is below the tree's leaves (see the subtree's availability)",
         ));
     }
     // Errors (a tile without content among them) are never cached.

@@ -213,6 +213,42 @@ pub fn generate_cluster_until(
     stats.dropped_constraints += report.dropped_constraints;
 }
 
+/// A record's footprint and heights as the generator builds it (from its first outer ring's
+/// roof), without building it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RecordOutline {
+    /// Footprint area, m² (courtyards left out).
+    pub area: f64,
+    /// Total height above the ground, m.
+    pub height: f64,
+    /// Height of the lowest floor above the ground, m.
+    pub min_height: f64,
+    /// Roof rise from eaves to top, m.
+    pub roof_height: f64,
+}
+
+/// The outline of `record` in `frame`, or `None` when it cannot be built.
+pub fn record_outline(record: &BuildingRecord, frame: &LocalFrame) -> Option<RecordOutline> {
+    let p = prepare(record, frame).ok()?;
+    let footprint = p.footprints.first()?;
+    let axes = RoofAxes::of_ring(&footprint.outer.points).map(RoofAxes::long_first)?;
+    let surface = RoofSurface::new(
+        params_shape(&p.tags),
+        axes,
+        p.tags.orientation,
+        &footprint.outer.points,
+        p.tags.direction,
+        None,
+    );
+    let params = BuildingParams::new(&p.tags, surface.run());
+    Some(RecordOutline {
+        area: p.footprints.iter().map(Footprint::area).sum(),
+        height: params.height,
+        min_height: params.min_height,
+        roof_height: params.roof_height,
+    })
+}
+
 fn params_shape(tags: &BuildingTags) -> RoofShape {
     match &tags.roof_shape {
         Some(super::tags::ShapeTag::Known(s)) => *s,

@@ -1,10 +1,13 @@
 //! A scene: everything generated for one bounding box, in one local frame, ready to encode: the
 //! ground grid and the buildings standing on it. [`SceneArea`] says, for every kind of area
-//! citymesh serves, which box and which groups of buildings a scene holds.
+//! citymesh serves, which box and which groups of buildings a scene holds; [`level_of_detail`]
+//! how coarse tiles above the 3D Tiles leaves simplify them.
 
+mod level_of_detail;
 mod request;
 mod roof_choice;
 
+pub use level_of_detail::{LevelOfDetail, Simplified};
 pub use request::{SceneArea, SceneOutput, SceneRequest};
 pub use roof_choice::RoofChoice;
 
@@ -13,9 +16,18 @@ use crate::building::{BuildingContext, BuildingStats, generate_cluster_until};
 use crate::geo::{GeoBbox, LocalFrame};
 use crate::mesh::{EncodedGlb, Encoding, Mesh, Placement, encode_glb};
 use crate::osm::BuildingRecord;
-use crate::terrain::{ElevationModel, GroundReport, build_ground};
+use crate::terrain::{ElevationModel, GroundReport, build_coarse_ground, build_ground};
 use crate::tiles3d::Region;
 use std::ops::Range;
+
+/// How the ground of a scene is drawn.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GroundDetail {
+    /// Every cell of the elevation model (docs/method.md section 4).
+    Dem,
+    /// A regular grid of this many cells per side (coarse levels of detail).
+    Grid(u32),
+}
 
 /// How buildings meet the border of the scene's box.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -52,7 +64,16 @@ impl Scene {
         clusters: &[Vec<&BuildingRecord>],
         border: Border,
     ) -> Self {
-        Self::build(model, bbox, clusters, border, &|| false, 1).0
+        Self::build(
+            model,
+            bbox,
+            clusters,
+            border,
+            GroundDetail::Dem,
+            &|| false,
+            1,
+        )
+        .0
     }
 
     /// Like [`Scene::new`], but asks `stop` before each group of buildings and gives up (`None`)
@@ -68,23 +89,35 @@ impl Scene {
         stop: &(dyn Fn() -> bool + Sync),
         workers: usize,
     ) -> Option<Self> {
-        let (scene, complete) = Self::build(model, bbox, clusters, border, stop, workers);
+        let (scene, complete) = Self::build(
+            model,
+            bbox,
+            clusters,
+            border,
+            GroundDetail::Dem,
+            stop,
+            workers,
+        );
         complete.then_some(scene)
     }
 
     /// The scene, and whether it is complete (`stop` never said so).
-    fn build(
+    pub(super) fn build(
         model: &ElevationModel,
         bbox: &GeoBbox,
         clusters: &[Vec<&BuildingRecord>],
         border: Border,
+        ground: GroundDetail,
         stop: &(dyn Fn() -> bool + Sync),
         workers: usize,
     ) -> (Self, bool) {
         let (lon, lat) = bbox.center();
         let frame = LocalFrame::new(lon, lat, 0.0);
         let mut mesh = Mesh::default();
-        let ground = build_ground(model, bbox, &frame, &mut mesh);
+        let ground = match ground {
+            GroundDetail::Dem => build_ground(model, bbox, &frame, &mut mesh),
+            GroundDetail::Grid(cells) => build_coarse_ground(model, bbox, &frame, cells, &mut mesh),
+        };
         let ctx = BuildingContext {
             frame: &frame,
             elevation: model,

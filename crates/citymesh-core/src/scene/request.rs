@@ -4,13 +4,15 @@
 //! tiling, see [`crate::building::set::ClusterInfo`]), how buildings meet the border, and how the
 //! result is placed on the Earth. Servers build one [`SceneRequest`] and hand it the data.
 
-use super::{Border, RoofChoice, Scene};
+use super::level_of_detail::{LevelOfDetail, Simplified};
+use super::{Border, GroundDetail, RoofChoice, Scene};
 use crate::building::set::{BuildingSet, ClusterInfo, extent_with};
 use crate::building::{BuildingStats, RoofOrigin};
-use crate::geo::{BboxError, GeoBbox, ImplicitTile, TileCoord};
+use crate::geo::{BboxError, GeoBbox, ImplicitTile, LocalFrame, TileCoord};
 use crate::mesh::{EncodedGlb, Encoding, Placement};
 use crate::osm::BuildingRecord;
 use crate::terrain::{ElevationModel, GroundReport};
+use crate::tiles3d::ImplicitLayout;
 use std::borrow::Cow;
 
 /// An area to generate.
@@ -65,6 +67,13 @@ impl SceneArea {
             SceneArea::Implicit { root, tile } => set.clusters_of_implicit_tile(root, tile),
             SceneArea::Given(_) => set.clusters().iter().collect(),
         };
+        // Implicit tiles above the leaves are coarser (docs/method.md, levels of detail).
+        let detail = match self {
+            SceneArea::Implicit { root, tile } => LevelOfDetail {
+                above_leaves: ImplicitLayout::leaf_level_of(root).saturating_sub(tile.level),
+            },
+            _ => LevelOfDetail::default(),
+        };
         Ok(SceneRequest {
             set,
             bbox,
@@ -74,6 +83,7 @@ impl SceneArea {
             encoding: Encoding::default(),
             roofs: None,
             workers: 1,
+            detail,
         })
     }
 }
@@ -95,6 +105,8 @@ pub struct SceneRequest<'a> {
     /// Threads the groups of buildings are shared among (1: the calling thread only). The
     /// output does not depend on it.
     pub workers: usize,
+    /// How coarse the content is (full detail but for implicit tiles above the leaves).
+    pub detail: LevelOfDetail,
 }
 
 /// A generated, encoded scene and what went into it.
@@ -137,8 +149,10 @@ impl<'a> SceneRequest<'a> {
     }
 
     /// Each group's records as the generator sees them (with chosen roofs applied, and only
-    /// those marked as chosen).
+    /// those marked as chosen; simplified at a coarse level of detail, groups left empty left
+    /// out).
     fn group_records(&self) -> Vec<Vec<Cow<'a, BuildingRecord>>> {
+        let frame = self.frame();
         self.groups
             .iter()
             .map(|c| {
@@ -147,31 +161,59 @@ impl<'a> SceneRequest<'a> {
                     .cluster_records(c)
                     .into_iter()
                     .map(RoofChoice::unmarked);
-                match self.roofs {
+                let chosen: Vec<Cow<'a, BuildingRecord>> = match self.roofs {
                     Some(roofs) if !roofs.is_empty() => records.map(|r| roofs.apply(r)).collect(),
                     _ => records.collect(),
+                };
+                if self.detail.is_full() {
+                    return chosen;
                 }
+                chosen
+                    .into_iter()
+                    .filter_map(|r| self.detail.simplify(r, &frame).0)
+                    .collect()
             })
+            .filter(|g: &Vec<_>| !g.is_empty())
             .collect()
+    }
+
+    /// The frame the scene is built in: the box's centre at 0 m.
+    fn frame(&self) -> LocalFrame {
+        let (lon, lat) = self.bbox.center();
+        LocalFrame::new(lon, lat, 0.0)
+    }
+
+    /// The largest height this request's level of detail does not draw (its geometric error,
+    /// m): a dropped building's, half a flattened roof's, or the coarse ground's distance from
+    /// the model. 0 at full detail.
+    pub fn hidden_height(&self, model: &ElevationModel) -> f64 {
+        if self.detail.is_full() {
+            return 0.0;
+        }
+        let frame = self.frame();
+        let mut worst = LevelOfDetail::ground_error(&self.bbox, model);
+        for c in &self.groups {
+            for r in self.set.cluster_records(c) {
+                let hidden = match self.detail.simplify(Cow::Borrowed(r), &frame).1 {
+                    Simplified::Kept => 0.0,
+                    Simplified::Flattened { hidden_m } | Simplified::Dropped { hidden_m } => {
+                        hidden_m
+                    }
+                };
+                worst = worst.max(hidden);
+            }
+        }
+        worst
     }
 
     /// The scene over `model` (which should cover [`SceneRequest::terrain_bbox`]).
     pub fn scene(&self, model: &ElevationModel) -> Scene {
-        let records = self.group_records();
-        Scene::new(model, &self.bbox, &as_refs(&records), self.border)
+        self.build(model, &|| false, 1).0
     }
 
     /// The scene over `model`, encoded.
     pub fn generate(&self, model: &ElevationModel) -> SceneOutput {
-        let records = self.group_records();
-        let (scene, _) = Scene::build(
-            model,
-            &self.bbox,
-            &as_refs(&records),
-            self.border,
-            &|| false,
-            self.workers,
-        );
+        let (scene, _) = self.build(model, &|| false, self.workers);
         Self::output(scene, self.placement, self.encoding)
     }
 
@@ -182,16 +224,33 @@ impl<'a> SceneRequest<'a> {
         model: &ElevationModel,
         stop: &(dyn Fn() -> bool + Sync),
     ) -> Option<SceneOutput> {
+        let (scene, complete) = self.build(model, stop, self.workers);
+        (complete && !stop()).then(|| Self::output(scene, self.placement, self.encoding))
+    }
+
+    /// The scene and whether `stop` let it finish; a coarse level of detail has the grid
+    /// ground.
+    fn build(
+        &self,
+        model: &ElevationModel,
+        stop: &(dyn Fn() -> bool + Sync),
+        workers: usize,
+    ) -> (Scene, bool) {
         let records = self.group_records();
-        let scene = Scene::new_with_workers(
+        let ground = if self.detail.is_full() {
+            GroundDetail::Dem
+        } else {
+            GroundDetail::Grid(LevelOfDetail::GROUND_CELLS)
+        };
+        Scene::build(
             model,
             &self.bbox,
             &as_refs(&records),
             self.border,
+            ground,
             stop,
-            self.workers,
-        )?;
-        (!stop()).then(|| Self::output(scene, self.placement, self.encoding))
+            workers,
+        )
     }
 
     fn output(scene: Scene, placement: Placement, encoding: Encoding) -> SceneOutput {

@@ -4,12 +4,14 @@
 //!
 //! Finding and reading files is the caller's job; this module only ever sees bytes.
 
+mod coarse_ground;
 mod elevation;
 mod ground;
 mod hgt;
 mod model;
 mod range;
 
+pub use coarse_ground::build_coarse_ground;
 pub use elevation::corner_height;
 pub use ground::{GroundReport, build_ground};
 pub use hgt::{HgtError, HgtTile, VOID, hgt_name, parse_hgt_name};

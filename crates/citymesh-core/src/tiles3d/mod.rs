@@ -8,5 +8,8 @@ mod subtree;
 mod tileset;
 
 pub use regions::{Region, TileRegions, measure_regions};
-pub use subtree::{SUBTREE_MAGIC, TILE_CLASS, TILE_REGION_PROPERTY, root_subtree, write_subtree};
+pub use subtree::{
+    SUBTREE_MAGIC, TILE_CLASS, TILE_ERROR_PROPERTY, TILE_REGION_PROPERTY, root_subtree,
+    write_subtree,
+};
 pub use tileset::{ImplicitLayout, tileset_json};

@@ -104,56 +104,62 @@ impl Region {
     }
 }
 
-/// The regions of every tile of a tree whose content sits at `leaf_level`, level by level, each
-/// level in Morton order (the order of the subtree's availability).
+/// The regions and geometric errors of every tile of a tree whose leaves are at `leaf_level`,
+/// level by level, each level in Morton order (the order of the subtree's availability).
 #[derive(Debug, Clone, PartialEq)]
 pub struct TileRegions {
     pub leaf_level: u8,
-    levels: Vec<Vec<Region>>,
+    levels: Vec<Vec<(Region, f64)>>,
 }
 
 impl TileRegions {
-    /// From each leaf's measured content region (`None`: no content, the tile's square at
-    /// `empty` heights), with [`SLACK_M`] around it; parents hold their children.
+    /// From each tile's measured content: its region (`None`: no content, the tile's square at
+    /// `empty` heights) and the height its level of detail does not draw. A tile's region holds
+    /// its content with [`SLACK_M`] around it and its children's regions; its geometric error is
+    /// the larger of its own and its children's (0 at the leaves).
     pub fn new(
         root: &GeoBbox,
         leaf_level: u8,
-        leaf: &mut dyn FnMut(ImplicitTile) -> Option<Region>,
+        content: &mut dyn FnMut(ImplicitTile) -> Option<(Region, f64)>,
         empty: (f64, f64),
     ) -> Self {
-        let n = 1u32 << leaf_level;
-        let mut leaves = vec![None; (n as usize) * (n as usize)];
-        for x in 0..n {
-            for y in 0..n {
-                let t = ImplicitTile {
-                    level: leaf_level,
-                    x,
-                    y,
-                };
-                let square = || {
-                    let [w, s, e, no] = t.bounds(root);
-                    Region {
-                        west: w,
-                        south: s,
-                        east: e,
-                        north: no,
-                        min_height: empty.0,
-                        max_height: empty.1,
+        let mut levels: Vec<Vec<(Region, f64)>> = Vec::with_capacity(usize::from(leaf_level) + 1);
+        for level in (0..=leaf_level).rev() {
+            let n = 1u32 << level;
+            let below = levels.last();
+            let mut here = vec![None; (n as usize) * (n as usize)];
+            for x in 0..n {
+                for y in 0..n {
+                    let t = ImplicitTile { level, x, y };
+                    let square = || {
+                        let [w, s, e, no] = t.bounds(root);
+                        (
+                            Region {
+                                west: w,
+                                south: s,
+                                east: e,
+                                north: no,
+                                min_height: empty.0,
+                                max_height: empty.1,
+                            },
+                            0.0,
+                        )
+                    };
+                    let (own, own_error) = content(t).unwrap_or_else(square);
+                    let m = morton(x, y) as usize;
+                    let mut region = own.grown(SLACK_M);
+                    let mut error = if level == leaf_level { 0.0 } else { own_error };
+                    // In Morton order a tile's four children are consecutive.
+                    if let Some(children) = below.and_then(|b| b.get(4 * m..4 * m + 4)) {
+                        for (r, e) in children {
+                            region = region.union(r);
+                            error = error.max(*e);
+                        }
                     }
-                };
-                let r = leaf(t).unwrap_or_else(square).grown(SLACK_M);
-                leaves[morton(x, y) as usize] = Some(r);
+                    here[m] = Some((region, error));
+                }
             }
-        }
-        let mut levels = vec![leaves.into_iter().flatten().collect::<Vec<Region>>()];
-        for _ in 0..leaf_level {
-            let Some(below) = levels.last() else { break };
-            // In Morton order a parent's four children are consecutive.
-            let up: Vec<Region> = below
-                .chunks_exact(4)
-                .map(|c| c[0].union(&c[1]).union(&c[2]).union(&c[3]))
-                .collect();
-            levels.push(up);
+            levels.push(here.into_iter().flatten().collect());
         }
         levels.reverse();
         Self { leaf_level, levels }
@@ -161,22 +167,32 @@ impl TileRegions {
 
     /// The region of a tile of the tree.
     pub fn get(&self, t: ImplicitTile) -> Option<Region> {
+        self.entry(t).map(|(r, _)| r)
+    }
+
+    /// The geometric error of a tile of the tree (metres; 0 at the leaves).
+    pub fn error(&self, t: ImplicitTile) -> Option<f64> {
+        self.entry(t).map(|(_, e)| e)
+    }
+
+    fn entry(&self, t: ImplicitTile) -> Option<(Region, f64)> {
         self.levels
             .get(usize::from(t.level))?
             .get(morton(t.x, t.y) as usize)
             .copied()
     }
 
-    /// Every tile's region, level by level in Morton order.
-    pub fn all(&self) -> impl Iterator<Item = &Region> {
+    /// Every tile's region and geometric error, level by level in Morton order.
+    pub fn all(&self) -> impl Iterator<Item = &(Region, f64)> {
         self.levels.iter().flatten()
     }
 }
 
-/// The regions of the tree over `root` with content at `leaf_level`, measured by generating each
-/// leaf's content from `set` on the model `model_for` gives for its terrain box, once per roof
-/// variant in `variants` (none: roofs from tags alone), so that content made with any of them
-/// lies inside. `stop` is asked before each leaf; `None` when it said so.
+/// The regions and geometric errors of the tree over `root` with leaves at `leaf_level`,
+/// measured by generating each tile's content (coarser above the leaves) from `set` on the
+/// model `model_for` gives for its terrain box, once per roof variant in `variants` (none: roofs
+/// from tags alone), so that content made with any of them lies inside. `stop` is asked before
+/// each tile; `None` when it said so.
 pub fn measure_regions(
     root: &GeoBbox,
     leaf_level: u8,
@@ -207,7 +223,7 @@ pub fn measure_regions(
                     (a, b) => a.or(b),
                 };
             }
-            region
+            region.map(|r| (r, request.hidden_height(&model)))
         },
         (0.0, 0.0),
     );
@@ -234,14 +250,23 @@ mod tests {
                 let [w, s, e, n] = t.bounds(&root);
                 let east = if t == tall { e + 10.0 / 73_000.0 } else { e };
                 let top = if t == tall { 130.0 } else { 100.0 };
-                Some(Region {
+                // Coarser tiles hide more: 2 m per level above the leaves.
+                let error = 2.0 * f64::from(2 - t.level);
+                let r = Region {
                     west: w,
                     south: s,
                     east,
                     north: n,
                     min_height: 90.0,
                     max_height: top,
-                })
+                };
+                (t.level == 2).then_some((r, error)).or(Some((
+                    Region {
+                        max_height: 95.0,
+                        ..r
+                    },
+                    error,
+                )))
             },
             (0.0, 0.0),
         );
@@ -274,5 +299,23 @@ mod tests {
             })
             .unwrap();
         assert!(other.max_height < 101.0);
+        // Errors: 0 at the leaves, then each level's own (and at least its children's).
+        assert_eq!(regions.error(tall), Some(0.0));
+        assert_eq!(
+            regions.error(ImplicitTile {
+                level: 1,
+                x: 1,
+                y: 1
+            }),
+            Some(2.0)
+        );
+        assert_eq!(
+            regions.error(ImplicitTile {
+                level: 0,
+                x: 0,
+                y: 0
+            }),
+            Some(4.0)
+        );
     }
 }

@@ -32,13 +32,15 @@ fn availability(bits: &[bool]) -> Availability {
 
 /// The class of the subtree's tile metadata in the tileset's schema: each tile's bounding region.
 pub const TILE_CLASS: &str = "tile";
-/// Its one property, with the semantic `TILE_BOUNDING_REGION`.
+/// Its property with the semantic `TILE_BOUNDING_REGION`.
 pub const TILE_REGION_PROPERTY: &str = "boundingRegion";
+/// Its property with the semantic `TILE_GEOMETRIC_ERROR`.
+pub const TILE_ERROR_PROPERTY: &str = "geometricError";
 
-/// The one subtree of a tree whose content sits at `regions.leaf_level`: every tile exists and
-/// every leaf has content (its ground, with the buildings whose group's point it holds), so the
-/// ground has no notches where a leaf holds no building. Each tile's bounding region, measured
-/// on its content, is its tile metadata.
+/// The one subtree of a tree whose leaves are at `regions.leaf_level`: every tile exists and has
+/// content (its ground, with the buildings whose group's point it holds, coarser above the
+/// leaves), so the ground has no notches. Each tile's bounding region, measured on its content,
+/// and its geometric error are its tile metadata.
 pub fn root_subtree(regions: &TileRegions) -> Vec<u8> {
     let root = ImplicitTile {
         level: 0,
@@ -50,7 +52,7 @@ pub fn root_subtree(regions: &TileRegions) -> Vec<u8> {
         root,
         leaf_level + 1,
         &|_| true,
-        &|t| t.level == leaf_level,
+        &|t| t.level <= leaf_level,
         &|_| false,
         Some(regions),
     )
@@ -115,17 +117,26 @@ pub fn write_subtree(
     let available = tiles.iter().filter(|b| **b).count();
     let metadata = regions.filter(|r| r.all().count() == available && available == tiles.len());
     let table = metadata.map(|r| {
-        let at = binary.len();
-        for region in r.all() {
-            for v in region.to_radians() {
+        let mut column = |values: &mut dyn Iterator<Item = f64>| {
+            while !binary.len().is_multiple_of(8) {
+                binary.push(0);
+            }
+            let at = binary.len();
+            for v in values {
                 binary.extend_from_slice(&v.to_le_bytes());
             }
-        }
-        views.push(json!({"buffer": 0, "byteOffset": at, "byteLength": binary.len() - at}));
+            views.push(json!({"buffer": 0, "byteOffset": at, "byteLength": binary.len() - at}));
+            views.len() - 1
+        };
+        let regions = column(&mut r.all().flat_map(|(region, _)| region.to_radians()));
+        let errors = column(&mut r.all().map(|(_, e)| *e));
         json!([{
             "class": TILE_CLASS,
             "count": available,
-            "properties": {TILE_REGION_PROPERTY: {"values": views.len() - 1}},
+            "properties": {
+                TILE_REGION_PROPERTY: {"values": regions},
+                TILE_ERROR_PROPERTY: {"values": errors},
+            },
         }])
     });
     let mut doc = json!({

@@ -1,7 +1,7 @@
 //! The tileset JSON of a region with implicit quadtree tiling.
 
 use super::regions::TileRegions;
-use super::subtree::{TILE_CLASS, TILE_REGION_PROPERTY};
+use super::subtree::{TILE_CLASS, TILE_ERROR_PROPERTY, TILE_REGION_PROPERTY};
 use crate::building::feature::BUILDING_CLASS;
 use crate::geo::{GeoBbox, ImplicitTile, LocalFrame};
 use serde_json::{Value, json};
@@ -18,19 +18,11 @@ pub struct ImplicitLayout {
     /// Heights of the region's bounding volume (metres).
     pub min_height: f64,
     pub max_height: f64,
+    /// The root tile's geometric error (metres): what its coarse content does not draw.
+    pub root_error: f64,
 }
 
 impl ImplicitLayout {
-    /// Leaves at most [`LEAF_SIZE_M`] wide.
-    pub fn new(root: GeoBbox, min_height: f64, max_height: f64) -> Self {
-        Self {
-            root,
-            leaf_level: Self::leaf_level_of(&root),
-            min_height,
-            max_height,
-        }
-    }
-
     /// The tree over `root` with the height range its content spans (the root tile's measured
     /// region).
     pub fn from_regions(root: GeoBbox, regions: &TileRegions) -> Self {
@@ -40,11 +32,19 @@ impl ImplicitLayout {
             y: 0,
         });
         let (lo, hi) = whole.map_or((0.0, 0.0), |r| (r.min_height, r.max_height));
+        let root_error = regions
+            .error(ImplicitTile {
+                level: 0,
+                x: 0,
+                y: 0,
+            })
+            .unwrap_or(0.0);
         Self {
             root,
             leaf_level: regions.leaf_level,
             min_height: lo,
             max_height: hi,
+            root_error,
         }
     }
 
@@ -61,15 +61,17 @@ impl ImplicitLayout {
         self.leaf_level + 1
     }
 
-    /// The geometric error of the root. Only the leaves have content (there are no coarser
-    /// meshes), so the errors are large enough that clients refine to the leaves whenever the
-    /// region is in view: the root's is the region's size, and the leaves' that over 2^levels.
-    pub fn root_error(&self) -> f64 {
+    /// The geometric error the tileset gives its root: four times the region's diagonal, so
+    /// that clients always refine into the tree, where each tile's own error (subtree metadata,
+    /// `TILE_GEOMETRIC_ERROR`) decides. CesiumJS does not draw an implicit tree whose root it
+    /// does not refine; 3d-tiles-renderer, which ignores the metadata, halves this per level
+    /// and so refines to the leaves whenever the region is in view.
+    pub fn tileset_root_error(&self) -> f64 {
         let (lon, lat) = self.root.center();
         let (mx, my) = LocalFrame::new(lon, lat, 0.0).metres_per_degree();
         let w = (self.root.max_lon() - self.root.min_lon()) * mx;
         let h = (self.root.max_lat() - self.root.min_lat()) * my;
-        4.0 * w.hypot(h)
+        (4.0 * w.hypot(h)).max(self.root_error)
     }
 }
 
@@ -80,14 +82,22 @@ fn schema() -> Value {
     schema["id"] = json!("citymesh_tileset");
     schema["classes"][TILE_CLASS] = json!({
         "description": "A tile of the implicit tree",
-        "properties": {TILE_REGION_PROPERTY: {
-            "description": "The tile's bounding region, measured on its content (radians, metres)",
-            "type": "SCALAR",
-            "componentType": "FLOAT64",
-            "array": true,
-            "count": 6,
-            "semantic": "TILE_BOUNDING_REGION",
-        }},
+        "properties": {
+            TILE_REGION_PROPERTY: {
+                "description": "The tile's bounding region, measured on its content (radians, metres)",
+                "type": "SCALAR",
+                "componentType": "FLOAT64",
+                "array": true,
+                "count": 6,
+                "semantic": "TILE_BOUNDING_REGION",
+            },
+            TILE_ERROR_PROPERTY: {
+                "description": "The largest height the tile's level of detail does not draw (metres; 0 at the leaves)",
+                "type": "SCALAR",
+                "componentType": "FLOAT64",
+                "semantic": "TILE_GEOMETRIC_ERROR",
+            },
+        },
     });
     schema
 }
@@ -107,11 +117,11 @@ pub fn tileset_json(layout: &ImplicitLayout, prefix: &str) -> Value {
     json!({
         "asset": {"version": "1.1", "generator": concat!("citymesh ", env!("CARGO_PKG_VERSION"))},
         "schema": schema(),
-        "geometricError": layout.root_error() * 2.0,
+        "geometricError": layout.tileset_root_error() * 2.0,
         "root": {
             "boundingVolume": {"region": region},
             "refine": "REPLACE",
-            "geometricError": layout.root_error(),
+            "geometricError": layout.tileset_root_error(),
             "content": {"uri": format!("{prefix}content/{{level}}/{{x}}/{{y}}.glb")},
             "implicitTiling": {
                 "subdivisionScheme": "QUADTREE",
