@@ -104,21 +104,10 @@ pub fn generate_cluster_until(
         let feature = stats.features.len() as u32;
         let mut first_params: Option<BuildingParams> = None;
         for (k, footprint) in p.footprints.iter().enumerate() {
-            let Some(axes) = RoofAxes::of_ring(&footprint.outer.points).map(RoofAxes::long_first)
-            else {
+            let Some((surface, params)) = roof_and_params(p, footprint) else {
                 stats.skip(p.record.id, "degenerate_footprint");
                 continue;
             };
-            let shape = params_shape(&p.tags);
-            let surface = RoofSurface::new(
-                shape,
-                axes,
-                p.tags.orientation,
-                &footprint.outer.points,
-                p.tags.direction,
-                None,
-            );
-            let params = BuildingParams::new(&p.tags, surface.run());
             let ring: Vec<(f64, f64)> = ground_ring
                 .get(k)
                 .or(ground_ring.first())
@@ -230,7 +219,18 @@ pub struct RecordOutline {
 /// The outline of `record` in `frame`, or `None` when it cannot be built.
 pub fn record_outline(record: &BuildingRecord, frame: &LocalFrame) -> Option<RecordOutline> {
     let p = prepare(record, frame).ok()?;
-    let footprint = p.footprints.first()?;
+    let (_, params) = roof_and_params(&p, p.footprints.first()?)?;
+    Some(RecordOutline {
+        area: p.footprints.iter().map(Footprint::area).sum(),
+        height: params.height,
+        min_height: params.min_height,
+        roof_height: params.roof_height,
+    })
+}
+
+/// The roof over one footprint of `p` (before heights) and the parameters under it; `None`
+/// when the footprint has no axes.
+fn roof_and_params(p: &Prepared, footprint: &Footprint) -> Option<(RoofSurface, BuildingParams)> {
     let axes = RoofAxes::of_ring(&footprint.outer.points).map(RoofAxes::long_first)?;
     let surface = RoofSurface::new(
         params_shape(&p.tags),
@@ -241,12 +241,7 @@ pub fn record_outline(record: &BuildingRecord, frame: &LocalFrame) -> Option<Rec
         None,
     );
     let params = BuildingParams::new(&p.tags, surface.run());
-    Some(RecordOutline {
-        area: p.footprints.iter().map(Footprint::area).sum(),
-        height: params.height,
-        min_height: params.min_height,
-        roof_height: params.roof_height,
-    })
+    Some((surface, params))
 }
 
 fn params_shape(tags: &BuildingTags) -> RoofShape {
