@@ -46,8 +46,14 @@ impl ClassDef {
     /// The schema declaring this class (`EXT_structural_metadata.schema`, or a tileset's
     /// `schema`).
     pub fn schema(&self) -> Value {
+        self.schema_with(&|_| true)
+    }
+
+    /// The schema declaring this class with only the properties `keep` keeps (a GLB declares
+    /// those its table holds: readers expect a column for every property of the class).
+    fn schema_with(&self, keep: &dyn Fn(&PropertyDef) -> bool) -> Value {
         let mut properties = Map::new();
-        for p in self.properties {
+        for p in self.properties.iter().filter(|p| keep(p)) {
             let mut def = Map::new();
             def.insert("description".into(), json!(p.description));
             match p.kind {
@@ -139,11 +145,14 @@ impl PropertyTable {
             views.len() - 1
         };
         let mut properties = Map::new();
+        let mut kept = Vec::new();
         for (def, column) in self.class.properties.iter().zip(&self.columns) {
             if column.is_all_no_data(def.kind) {
-                // An optional property with nothing to say is left out (and costs nothing).
+                // An optional property with nothing to say is left out of the table and of the
+                // schema this file declares (and costs nothing).
                 continue;
             }
+            kept.push(def.name);
             let property = match column {
                 Column::Strings(values) => {
                     let data: Vec<u8> = values.iter().flat_map(|v| v.bytes()).collect();
@@ -179,7 +188,7 @@ impl PropertyTable {
             bin.push(0);
         }
         json!({
-            "schema": self.class.schema(),
+            "schema": self.class.schema_with(&|p| kept.contains(&p.name)),
             "propertyTables": [{
                 "name": self.class.id,
                 "class": self.class.id,
@@ -267,6 +276,11 @@ mod tests {
         let ext = empty.append_to(&mut Vec::new(), &mut views);
         let props = ext["propertyTables"][0]["properties"].as_object().unwrap();
         assert_eq!(props.keys().collect::<Vec<_>>(), ["id"]);
+        // The file's schema declares only what its table holds.
+        let declared = ext["schema"]["classes"]["thing"]["properties"]
+            .as_object()
+            .unwrap();
+        assert_eq!(declared.keys().collect::<Vec<_>>(), ["id"]);
         assert_eq!(views.len(), 1);
     }
 }
