@@ -248,6 +248,14 @@ async fn stripped_kirchfeld_classified_through_the_api_agrees_with_its_tags_and_
             > 0.0
     );
     assert_eq!(stats["imagery_attribution"], "rendered by citymesh");
+    // The 3D Tiles pages carry it too, as a script string, shown with roofs=classified.
+    for page in ["/cesium", "/3dtiles-renderer"] {
+        let html = common::get(&app, page).await.text();
+        assert!(
+            html.contains("const imageryCredit = \"rendered by citymesh\";"),
+            "{page}"
+        );
+    }
     let plain_stats = common::get(&app, &format!("/scene/stats?bbox={AREA}"))
         .await
         .json();

@@ -81,8 +81,8 @@ pub async fn viewer_js() -> Response {
         (status = 200, description = "The page", content_type = "text/html", body = String),
         (status = 404, description = "Never: listed because every operation names its client errors", body = ErrorBody),
     ))]
-pub async fn cesium() -> Html<&'static str> {
-    Html(CESIUM_HTML.as_str())
+pub async fn cesium(State(state): State<AppState>) -> Html<String> {
+    Html(with_imagery_credit(&CESIUM_HTML, &state))
 }
 
 /// The 3d-tiles-renderer page: this server's 3D Tiles in three.js.
@@ -91,6 +91,21 @@ pub async fn cesium() -> Html<&'static str> {
         (status = 200, description = "The page", content_type = "text/html", body = String),
         (status = 404, description = "Never: listed because every operation names its client errors", body = ErrorBody),
     ))]
-pub async fn tiles_renderer() -> Html<&'static str> {
-    Html(TILES_RENDERER_HTML.as_str())
+pub async fn tiles_renderer(State(state): State<AppState>) -> Html<String> {
+    Html(with_imagery_credit(&TILES_RENDERER_HTML, &state))
+}
+
+/// A 3D Tiles page with the classifier's imagery attribution (`--imagery-attribution`), shown
+/// when the page asks for `roofs=classified`, as a JavaScript string (`<` escaped, so no text
+/// can close the script).
+fn with_imagery_credit(html: &str, state: &AppState) -> String {
+    let text = if state.classifier.is_some() {
+        state.roofs.imagery_attribution.as_str()
+    } else {
+        ""
+    };
+    let js = serde_json::to_string(text)
+        .unwrap_or_else(|_| "\"\"".to_owned())
+        .replace('<', "\\u003c");
+    html.replace("__IMAGERY_CREDIT__", &js)
 }
