@@ -2,9 +2,9 @@
 //! requests ask for the same tile at once.
 
 use super::key::TileKey;
+use super::region_cache::RegionCache;
 use super::scene_cache::SceneCache;
 use super::store::TileStore;
-use super::subtree_cache::SubtreeCache;
 use crate::generation_stats::GenerationStats;
 use crate::metrics::Metrics;
 use axum::http::HeaderValue;
@@ -76,9 +76,9 @@ pub struct TileCache {
     writes: TaskTracker,
     /// Box scenes, in memory; invalidated with the tiles.
     pub scenes: SceneCache,
-    /// 3D Tiles subtrees (their tile regions measured on the content); invalidated with the
+    /// The tile regions of 3D Tiles trees (measured on the content); invalidated with the
     /// tiles.
-    pub subtrees: SubtreeCache,
+    pub regions: RegionCache,
 }
 
 impl TileCache {
@@ -105,7 +105,7 @@ impl TileCache {
             metrics,
             // A quarter for box scenes, which count the same invalidations.
             scenes: SceneCache::new(memory_bytes / 4, epoch.clone()),
-            subtrees: SubtreeCache::default(),
+            regions: RegionCache::default(),
             epoch,
             writes: TaskTracker::new(),
         }
@@ -254,7 +254,7 @@ impl TileCache {
         self.epoch.fetch_add(1, Ordering::SeqCst);
         let removed = self.store.delete_overlapping(area).await?;
         self.scenes.invalidate_area(area);
-        self.subtrees.invalidate_all();
+        self.regions.invalidate_all();
         let area = *area;
         if let Err(e) = self
             .memory
@@ -270,7 +270,7 @@ impl TileCache {
         self.epoch.fetch_add(1, Ordering::SeqCst);
         self.memory.invalidate_all();
         self.scenes.invalidate_all();
-        self.subtrees.invalidate_all();
+        self.regions.invalidate_all();
     }
 }
 

@@ -34,7 +34,7 @@ pub async fn tile_regions(state: &AppState, root: GeoBbox) -> Result<Arc<TileReg
     let key = (root.to_string(), classified);
     state
         .tiles
-        .subtrees
+        .regions
         .get_or_make(key, async {
             within_timeout(state, async {
                 let buildings = state.source.buildings(&root).await?;
@@ -64,7 +64,7 @@ pub async fn tile_regions(state: &AppState, root: GeoBbox) -> Result<Arc<TileReg
 }
 
 /// Every untagged roof as each pitched shape the classifier can choose.
-pub fn roof_variants(set: &BuildingSet) -> Vec<RoofChoice> {
+fn roof_variants(set: &BuildingSet) -> Vec<RoofChoice> {
     [RoofShape::Gabled, RoofShape::Hipped]
         .into_iter()
         .map(|shape| {

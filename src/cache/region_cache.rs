@@ -11,11 +11,11 @@ const MAX_TREES: u64 = 64;
 
 /// Tile regions by the tree's region (its `minLon,minLat,maxLon,maxLat` text) and whether
 /// classified roofs were allowed for.
-pub struct SubtreeCache {
+pub struct RegionCache {
     memory: moka::future::Cache<(String, bool), Arc<TileRegions>>,
 }
 
-impl Default for SubtreeCache {
+impl Default for RegionCache {
     fn default() -> Self {
         Self {
             memory: moka::future::Cache::builder()
@@ -25,7 +25,7 @@ impl Default for SubtreeCache {
     }
 }
 
-impl SubtreeCache {
+impl RegionCache {
     /// The regions of `key`, measured by `make` when not held (concurrent requests share one).
     pub async fn get_or_make<F, E>(
         &self,
