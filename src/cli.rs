@@ -40,7 +40,8 @@ pub enum Command {
     /// building): prints one JSON line per file with the class probabilities.
     ClassifyImage(ClassifyImageArgs),
     /// Write a static tree of tiles for a static file server or object store: a 3D Tiles
-    /// tileset (`tileset.json`, `subtrees/`, `content/`) or XYZ GLB tiles (`{z}/{x}/{y}.glb`),
+    /// tileset (`tileset.json`, `content/`, and `subtrees/` when implicit) or XYZ GLB tiles
+    /// (`{z}/{x}/{y}.glb`),
     /// from the data the server would use (the serve options). Resumable: run the same command
     /// again after an interrupt and it writes only what is missing.
     Export(Box<ExportArgs>),
@@ -364,9 +365,14 @@ pub struct ExportArgs {
     #[arg(long, short)]
     pub out: PathBuf,
 
-    /// `3dtiles` (implicit tiling, as `/3dtiles/tileset.json` serves it) or `xyz`.
+    /// `3dtiles` (as `/3dtiles/tileset.json` serves it) or `xyz`.
     #[arg(long, value_enum, default_value_t = ExportFormat::Tiles3d)]
     pub format: ExportFormat,
+
+    /// How a 3D Tiles tileset lists its tiles: `explicit` (every tile written out) or
+    /// `implicit` (a quadtree and its binary subtree), as `?tiling=` serves them.
+    #[arg(long, value_enum, default_value_t = TilingArg::Explicit)]
+    pub tiling: TilingArg,
 
     /// XYZ zoom levels, `A-B` or `A` (default 16).
     #[arg(long)]
@@ -397,6 +403,22 @@ pub enum ExportFormat {
     Tiles3d,
     /// XYZ GLB tiles.
     Xyz,
+}
+
+/// `--tiling` of `citymesh export`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum TilingArg {
+    Explicit,
+    Implicit,
+}
+
+impl From<TilingArg> for citymesh_core::tiles3d::Tiling {
+    fn from(t: TilingArg) -> Self {
+        match t {
+            TilingArg::Explicit => Self::Explicit,
+            TilingArg::Implicit => Self::Implicit,
+        }
+    }
 }
 
 /// Options of `citymesh import`.

@@ -59,16 +59,16 @@ fn an_export_killed_half_way_and_run_again_is_byte_identical_to_one_run() {
     );
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
-        stdout.contains("exported 1367 files (1367 written now, 0 kept)"),
+        stdout.contains("exported 1366 files (1366 written now, 0 kept)"),
         "{stdout}"
     );
     let expected = tree(&whole);
     // 32 x 32 leaves of at most 400 m and the 341 coarser tiles above them, each with content,
-    // plus the subtree and the tileset.
-    assert_eq!(expected.len(), 1367);
+    // plus the tileset (explicit: no subtree).
+    assert_eq!(expected.len(), 1366);
     assert!(expected.contains_key("content/0/0/0.glb"));
     assert!(expected.contains_key("tileset.json"));
-    assert!(expected.contains_key("subtrees/0/0/0.subtree"));
+    assert!(!expected.contains_key("subtrees/0/0/0.subtree"));
     assert!(expected.contains_key("content/5/31/31.glb"));
 
     // On one worker, killed (SIGKILL) once half the files are written.
@@ -87,7 +87,7 @@ fn an_export_killed_half_way_and_run_again_is_byte_identical_to_one_run() {
     child.wait().unwrap();
     let partial = tree(&resumed);
     assert!(
-        !partial.contains_key("tileset.json") && partial.len() < 1367 && partial.len() >= 683,
+        !partial.contains_key("tileset.json") && partial.len() < 1366 && partial.len() >= 683,
         "the kill came at {} files",
         partial.len()
     );
@@ -105,8 +105,8 @@ fn an_export_killed_half_way_and_run_again_is_byte_identical_to_one_run() {
     let kept = partial.keys().filter(|k| !k.ends_with(".partial")).count();
     assert!(
         stdout.contains(&format!(
-            "exported 1367 files ({} written now, {kept} kept)",
-            1367 - kept
+            "exported 1366 files ({} written now, {kept} kept)",
+            1366 - kept
         )),
         "{stdout}"
     );
@@ -153,6 +153,39 @@ fn xyz_export_writes_the_tiles_the_server_serves() {
     common::assert_valid_glb(glb);
     let rows = common::decode::feature_rows(glb);
     assert!(rows.iter().any(|r| r["osm_id"] == "142104398"));
+}
+
+#[test]
+fn an_implicit_export_carries_its_subtree_and_the_tileset_names_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let bbox = "8.392,49.043,8.396,49.046";
+    let out = export(
+        dir.path(),
+        bbox,
+        "karlsruhe-kirchfeld.osm.pbf",
+        &["--tiling", "implicit", "--quiet"],
+    )
+    .output()
+    .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let files = tree(dir.path());
+    let tileset: serde_json::Value = serde_json::from_slice(&files["tileset.json"]).unwrap();
+    let implicit = &tileset["root"]["implicitTiling"];
+    assert_eq!(
+        implicit["subtrees"]["uri"],
+        "subtrees/{level}/{x}/{y}.subtree"
+    );
+    assert_eq!(&files["subtrees/0/0/0.subtree"][..4], b"subt");
+    // About 290 m x 330 m: one leaf level below the root, each tile with content.
+    let levels = implicit["availableLevels"].as_u64().unwrap();
+    let tiles: u64 = (0..levels).map(|l| 1 << (2 * l)).sum();
+    assert_eq!(levels, 1);
+    assert_eq!(files.len() as u64, tiles + 2);
+    assert!(files.contains_key("content/0/0/0.glb"));
 }
 
 #[test]

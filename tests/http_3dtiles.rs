@@ -80,7 +80,7 @@ fn bits(s: &Subtree, entry: &Value, count: usize) -> Vec<bool> {
 async fn the_tileset_subtree_and_content_follow_3d_tiles_1_1() {
     let db = tempfile::tempdir().unwrap();
     let app = app(&db).await;
-    let t = get(&app, "/3dtiles/tileset.json").await;
+    let t = get(&app, "/3dtiles/tileset.json?tiling=implicit").await;
     assert_eq!(t.status, StatusCode::OK);
     let tileset = t.json();
     assert_eq!(tileset["asset"]["version"], "1.1");
@@ -188,6 +188,49 @@ async fn the_tileset_subtree_and_content_follow_3d_tiles_1_1() {
     assert!(error_of(0, 0, 0) > 0.0);
     // The tileset's root error is larger, so clients always refine into the tree.
     assert!(root["geometricError"].as_f64().unwrap() > error_of(0, 0, 0));
+
+    // The explicit tileset (the default) writes the same tree out: every tile with the same
+    // region and error as its metadata here, the same content, four children above the leaves.
+    let explicit = get(&app, "/3dtiles/tileset.json").await.json();
+    assert!(explicit["root"]["implicitTiling"].is_null());
+    assert_eq!(explicit["root"]["refine"], "REPLACE");
+    assert_eq!(
+        explicit["schema"]["classes"]["building"],
+        tileset["schema"]["classes"]["building"]
+    );
+    let mut stack = vec![(&explicit["root"], 0u8, 0u32, 0u32)];
+    let mut seen = 0;
+    while let Some((tile, level, x, y)) = stack.pop() {
+        seen += 1;
+        let want = content_uri
+            .replace("{level}", &level.to_string())
+            .replace("{x}", &x.to_string())
+            .replace("{y}", &y.to_string());
+        assert_eq!(tile["content"]["uri"], want.as_str());
+        let r: Vec<f64> = tile["boundingVolume"]["region"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect();
+        assert_eq!(r, region_of(level, x, y), "{level}/{x}/{y}");
+        assert_eq!(
+            tile["geometricError"],
+            error_of(level, x, y),
+            "{level}/{x}/{y}"
+        );
+        let children = tile["children"].as_array().map_or(&[][..], |c| &c[..]);
+        if level == leaf {
+            assert!(children.is_empty());
+        } else {
+            assert_eq!(children.len(), 4);
+            for (k, c) in children.iter().enumerate() {
+                let (dx, dy) = ((k % 2) as u32, (k / 2) as u32);
+                stack.push((c, level + 1, 2 * x + dx, 2 * y + dy));
+            }
+        }
+    }
+    assert_eq!(seen, total);
     // The tileset's root spans the heights its content does.
     assert_eq!(
         (region[4], region[5]),
@@ -311,7 +354,9 @@ fn ecef_positions(glb: &[u8]) -> Vec<([f64; 3], String)> {
 async fn a_known_building_corner_decodes_onto_its_osm_node() {
     let db = tempfile::tempdir().unwrap();
     let app = app(&db).await;
-    let tileset = get(&app, "/3dtiles/tileset.json").await.json();
+    let tileset = get(&app, "/3dtiles/tileset.json?tiling=implicit")
+        .await
+        .json();
     let root = &tileset["root"];
     let levels = root["implicitTiling"]["availableLevels"].as_u64().unwrap() as u32;
     let region: Vec<f64> = root["boundingVolume"]["region"]

@@ -182,9 +182,12 @@ async fn content_tiles_in_every_encoding_draw_the_same_buildings() {
     let db = tempfile::tempdir().unwrap();
     let app = app(&db).await;
     let region = "8.392,49.046,8.401,49.053";
-    let tileset = get(&app, &format!("/3dtiles/tileset.json?bbox={region}"))
-        .await
-        .json();
+    let tileset = get(
+        &app,
+        &format!("/3dtiles/tileset.json?bbox={region}&tiling=implicit"),
+    )
+    .await
+    .json();
     let leaf = tileset["root"]["implicitTiling"]["availableLevels"]
         .as_u64()
         .unwrap()

@@ -15,4 +15,4 @@ pub use crate::generation_stats::GenerationStats;
 pub use limits::{run_blocking, within_timeout};
 pub use roofs::{ClassifiedRoofs, RoofFigures, RoofsParam, classified_roofs};
 pub use scene::{Buildings, Generated, generate};
-pub use tiles3d::{subtree, tileset_layout};
+pub use tiles3d::{subtree, tile_regions};

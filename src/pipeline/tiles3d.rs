@@ -1,5 +1,5 @@
-//! The 3D Tiles answers that are not meshes: the tree's layout over a region (for the tileset)
-//! and its binary subtree. Content tiles go through [`super::generate`].
+//! The 3D Tiles answers that are not meshes: the regions of the tree's tiles over a region (for
+//! the tileset) and its binary subtree. Content tiles go through [`super::generate`].
 
 use super::limits::{run_blocking, within_timeout};
 use crate::error::AppError;
@@ -11,12 +11,6 @@ use citymesh_core::geo::GeoBbox;
 use citymesh_core::scene::RoofChoice;
 use citymesh_core::tiles3d::{ImplicitLayout, TileRegions, measure_regions, root_subtree};
 use std::sync::Arc;
-
-/// The tree over `root`, its bounding region measured on its content (see [`tile_regions`]).
-pub async fn tileset_layout(state: &AppState, root: GeoBbox) -> Result<ImplicitLayout, AppError> {
-    let regions = tile_regions(state, root).await?;
-    Ok(ImplicitLayout::from_regions(root, &regions))
-}
 
 /// The binary subtree at the root of the tree over `root` (the tree's only one): every tile
 /// exists, every leaf has content (ground where it holds no building), and each tile's region

@@ -1,6 +1,6 @@
 //! 3D Tiles 1.1 for CesiumJS and 3d-tiles-renderer: `GET /3dtiles/tileset.json` (optionally
-//! `?bbox=`), and the binary subtrees and ECEF glb content its implicit quadtree names; content
-//! goes through the same tile cache as XYZ tiles.
+//! `?bbox=`, `?tiling=`), the ECEF glb content its quadtree names and, for implicit tiling, the
+//! binary subtree; content goes through the same tile cache as XYZ tiles.
 
 use super::params::{EncodingParam, TileQuery, encoding_for, parse_bbox};
 use super::roofs::cached_tile;
@@ -16,7 +16,7 @@ use axum::http::{HeaderMap, header};
 use axum::response::{IntoResponse, Response};
 use citymesh_core::geo::{GeoBbox, ImplicitTile};
 use citymesh_core::mesh::Encoding;
-use citymesh_core::tiles3d::{ImplicitLayout, tileset_json};
+use citymesh_core::tiles3d::{ImplicitLayout, Tiling, tileset_json};
 use serde::Deserialize;
 use utoipa::IntoParams;
 
@@ -36,6 +36,33 @@ pub struct TilesetQuery {
     /// tile's URI).
     #[param(inline)]
     pub encoding: Option<EncodingParam>,
+    /// How the tileset lists its tiles: `explicit` (the default) or `implicit`.
+    #[param(inline)]
+    pub tiling: Option<TilingParam>,
+}
+
+/// How a tileset lists its tiles, as asked with `?tiling=`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, utoipa::ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum TilingParam {
+    /// Every tile written out with the bounding region and geometric error measured on its
+    /// content: every 3D Tiles client honours them.
+    #[default]
+    Explicit,
+    /// A quadtree with one binary subtree that carries each tile's measured region and error as
+    /// tile metadata (`TILE_BOUNDING_REGION`, `TILE_GEOMETRIC_ERROR`): smaller, and CesiumJS
+    /// reads them, but 3d-tiles-renderer derives regions and errors from the root's and so
+    /// misses content that reaches past a tile's square.
+    Implicit,
+}
+
+impl From<TilingParam> for Tiling {
+    fn from(t: TilingParam) -> Self {
+        match t {
+            TilingParam::Explicit => Tiling::Explicit,
+            TilingParam::Implicit => Tiling::Implicit,
+        }
+    }
 }
 
 /// The query a content URI carries: what the tileset was asked for beyond the defaults.
@@ -109,14 +136,18 @@ fn parse_implicit(level: &str, x: &str, y: &str, ext: &str) -> Result<ImplicitTi
     Ok(t)
 }
 
-/// A 3D Tiles 1.1 tileset with implicit quadtree tiling over a region.
+/// A 3D Tiles 1.1 tileset: a quadtree over a region.
 ///
-/// The root's bounding volume is a `region` (radians; heights from the DEM and the buildings);
-/// each level halves it in longitude and latitude (y counted from the south); content (glb,
-/// ECEF) at every level: the leaves (tiles of at most 400 m) in full detail, coarser levels
-/// simplified (small buildings left out, roofs flattened, a grid ground). Subtrees are binary. Without `bbox`,
-/// the region is the extent of the served buildings (the demo city, or the `--osm` files); a
-/// server that fetches data by area needs it.
+/// Each level halves the region in longitude and latitude (y counted from the south); content
+/// (glb, ECEF) at every level: the leaves (tiles of at most 400 m) in full detail, coarser
+/// levels simplified (small buildings left out, roofs flattened, a grid ground). Every tile's
+/// bounding volume is a `region` (radians, metres) measured on its content, which may reach
+/// past its square (a building belongs to one tile whole), with tight heights; its geometric
+/// error is the largest height its content leaves out (0 at the leaves). With `tiling=explicit`
+/// (the default) the tiles are written out; with `tiling=implicit` they are an implicit
+/// quadtree whose one binary subtree carries each tile's region and error as tile metadata.
+/// Without `bbox`, the region is the extent of the served buildings (the demo city, or the
+/// `--osm` files); a server that fetches data by area needs it.
 #[utoipa::path(get, path = "/3dtiles/tileset.json", tag = "3d tiles", params(TilesetQuery),
     responses(
         (status = 200, description = "The tileset", body = Object),
@@ -132,18 +163,18 @@ pub async fn tileset(
 ) -> Result<Response, AppError> {
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
     let root = root_for(&state, query.bbox.as_deref())?;
-    let layout = pipeline::tileset_layout(&state, root).await?;
-    let mut json = tileset_json(&layout, &format!("area/{root}/"));
-    let extra = content_query(&query);
-    if !extra.is_empty()
-        && let Some(uri) = json.pointer_mut("/root/content/uri")
-    {
-        *uri = format!("{}?{extra}", uri.as_str().unwrap_or_default()).into();
-    }
+    let regions = pipeline::tile_regions(&state, root).await?;
+    let json = tileset_json(
+        root,
+        &regions,
+        query.tiling.unwrap_or_default().into(),
+        &format!("area/{root}/"),
+        &content_query(&query),
+    );
     Ok(([(header::CACHE_CONTROL, "public, max-age=300")], Json(json)).into_response())
 }
 
-/// A binary subtree file (the tree has one subtree, at the root).
+/// A binary subtree file of an implicit tileset (the tree has one subtree, at the root).
 #[utoipa::path(get, path = "/3dtiles/area/{bbox}/subtrees/{level}/{x}/{y}", tag = "3d tiles",
     params(("bbox" = String, Path, description = "The tree's region, minLon,minLat,maxLon,maxLat", example = "8.400,49.010,8.409,49.017"),
            ("level" = u8, Path, description = "Level of the subtree's root (only 0 exists)", minimum = 0, maximum = 30),

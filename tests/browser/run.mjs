@@ -1,8 +1,9 @@
 // Browser tests: Debian's Chromium (headless, WebGL through SwiftShader) driven by playwright-core
 // opens citymesh's pages on the Karlsruhe data and on the demo city, waits for tiles, and checks:
 // no page errors or failed requests, buildings visible (the screenshot differs from an empty
-// scene where the city is), and the 3D Tiles load in CesiumJS and in 3d-tiles-renderer with its
-// ImplicitTilingPlugin. Screenshots go to artifacts/browser/.
+// scene where the city is), the 3D Tiles load in CesiumJS and in 3d-tiles-renderer, and their
+// content lies inside the bounding volumes the client computes. Screenshots go to
+// artifacts/browser/.
 //
 // Usage: node tests/browser/run.mjs   (after `cargo build --release`; reads ../shared/data or
 // $CITYMESH_DATA_DIR). Prints "N passed, M failed" and exits 1 on any failure.
@@ -185,7 +186,7 @@ try {
       await c.page.close();
     });
 
-    await check(`3d-tiles-renderer loads the 3D Tiles of ${name} with ImplicitTilingPlugin`, async () => {
+    await check(`3d-tiles-renderer loads the 3D Tiles of ${name}`, async () => {
       const t = await open(`${server.url}/3dtiles-renderer${suffix}`, 'window.citymeshTilesRenderer && (window.citymeshTilesRenderer.ready || window.citymeshTilesRenderer.errors.length)');
       const s = await t.page.evaluate(() => window.citymeshTilesRenderer);
       await t.page.screenshot({ path: file('3dtiles-renderer') });
@@ -275,26 +276,77 @@ try {
     pickBuilding(karlsruhe.url, '3dtiles-renderer', 'citymeshTilesRenderer', await exportServed()));
 
   // What a client loads to show a 5 km x 5 km area from above (the README quotes it): the
-  // tileset over a 4.9 km square around Kirchfeld (under the 25 km² limit), CesiumJS at 7 km
+  // tileset over a 4.9 km square around Kirchfeld (under the 25 km² limit), the camera at 7 km
   // looking straight down.
-  await check('CesiumJS: a 5 km x 5 km overview from above loads (requests and bytes printed)', async () => {
+  const overview = async (page, ready) => {
     const bbox = '8.366,49.031,8.433,49.075';
-    const page = await browser.newPage({ viewport: { width: 1000, height: 700 } });
+    const tab = await browser.newPage({ viewport: { width: 1000, height: 700 } });
     let requests = 0, bytes = 0;
-    page.on('response', (r) => {
+    tab.on('response', (r) => {
       if (!/\.glb(\?|$)/.test(r.url()) || r.status() !== 200) return;
       requests++;
       bytes += Number(r.headers()['content-length'] ?? 0);
     });
-    await page.goto(`${karlsruhe.url}/cesium?bbox=${bbox}&lon=8.3995&lat=49.0525&height=7000&heading=0&pitch=-90`);
-    await page.waitForFunction(() => window.citymeshCesium && (window.citymeshCesium.ready || window.citymeshCesium.errors.length), null, { timeout: 300000, polling: 250 });
-    await page.waitForTimeout(1000);
-    const s = await page.evaluate(() => window.citymeshCesium);
-    await page.screenshot({ path: `${artifacts}/cesium-overview.png` });
+    await tab.goto(`${karlsruhe.url}/${page}?bbox=${bbox}&lon=8.3995&lat=49.0525&height=7000&heading=0&pitch=-90`);
+    await tab.waitForFunction(`${ready} && (${ready}.ready || ${ready}.errors.length)`, null, { timeout: 300000, polling: 250 });
+    await tab.waitForTimeout(1000);
+    const s = await tab.evaluate(`${ready}`);
+    await tab.screenshot({ path: `${artifacts}/${page}-overview.png` });
     if (s.errors.length) throw new Error(s.errors.join('\n'));
     if (!(requests > 0)) throw new Error('no content loaded');
     console.log(`  overview of ${bbox}: ${requests} content requests, ${(bytes / 1e6).toFixed(2)} MB`);
-    await page.close();
+    await tab.close();
+  };
+  await check('CesiumJS: a 5 km x 5 km overview from above loads (requests and bytes printed)', () =>
+    overview('cesium', 'window.citymeshCesium'));
+  await check('3d-tiles-renderer: a 5 km x 5 km overview from above loads (requests and bytes printed)', () =>
+    overview('3dtiles-renderer', 'window.citymeshTilesRenderer'));
+
+  // Bounded content as 3d-tiles-renderer sees it: every vertex of every loaded content lies in
+  // the bounding volume the client computed for its tile (an OBB around the tile's region).
+  // With implicit tiling it derives each tile's volume from the root's square and ignores the
+  // subtree's measured regions: that count is printed, for comparison.
+  const outsideItsTile = async (extra) => {
+    const t = await open(`${karlsruhe.url}/3dtiles-renderer?lon=8.3965&lat=49.0445&height=400&heading=20&pitch=-25${extra}`,
+      'window.citymeshTilesRenderer && (window.citymeshTilesRenderer.ready || window.citymeshTilesRenderer.errors.length)');
+    const report = await t.page.evaluate(() => {
+      const tiles = window.citymeshTilesRenderer.tiles;
+      let models = 0, vertices = 0, outside = 0, worst = 0;
+      // Loaded models out of view are detached from the tileset's group: a vertex goes to the
+      // tileset's frame through the local matrices up to the model's, not through matrixWorld.
+      tiles.forEachLoadedModel((model, tile) => {
+        models++;
+        const volume = tile.cached.boundingVolume;
+        model.updateMatrixWorld(true);
+        model.traverse((o) => {
+          const position = o.isMesh && o.geometry.getAttribute('position');
+          if (!position) return;
+          const m = o.matrix.clone();
+          for (let p = o.parent; p && p !== model.parent; p = p.parent) m.premultiply(p.matrix);
+          const v = o.position.clone();
+          for (let i = 0; i < position.count; i++) {
+            v.fromBufferAttribute(position, i).applyMatrix4(m);
+            const d = volume.distanceToPoint(v);
+            vertices++;
+            if (d > 0.01) { outside++; worst = Math.max(worst, d); }
+          }
+        });
+      });
+      return { models, vertices, outside, worst };
+    });
+    const s = await t.page.evaluate(() => window.citymeshTilesRenderer);
+    if (s.errors.length) throw new Error(s.errors.join('\n'));
+    if (t.problems.length) throw new Error(t.problems.join('\n'));
+    await t.page.close();
+    if (!(report.models > 0 && report.vertices > 0)) throw new Error(`nothing checked: ${JSON.stringify(report)}`);
+    return report;
+  };
+  await check('3d-tiles-renderer: every vertex of loaded content lies inside its tile\'s bounding volume', async () => {
+    const explicit = await outsideItsTile('');
+    if (explicit.outside) throw new Error(`${explicit.outside} vertices outside, up to ${explicit.worst.toFixed(2)} m: ${JSON.stringify(explicit)}`);
+    const implicit = await outsideItsTile('&tiling=implicit');
+    console.log(`  explicit tiling: ${explicit.models} models, ${explicit.vertices} vertices, 0 outside; ` +
+      `implicit tiling (for comparison): ${implicit.outside} of ${implicit.vertices} outside, up to ${implicit.worst.toFixed(1)} m`);
   });
 
   await check('3d-tiles-renderer opens at the camera in the URL and keeps the camera in the URL', async () => {

@@ -1,7 +1,7 @@
-//! 3D Tiles 1.1 with implicit tiling: the tileset JSON of a region and the binary subtree files
-//! that say which tiles exist and which have content, with each tile's bounding region measured
-//! on its content ([`regions`]). Content is GLB in ECEF
-//! ([`crate::scene::SceneArea::Implicit`]).
+//! 3D Tiles 1.1 over a region's quadtree: the tileset JSON, explicit (every tile written out) or
+//! implicit (with the binary subtree files that say which tiles exist and which have content),
+//! each tile's bounding region and geometric error measured on its content ([`regions`]).
+//! Content is GLB in ECEF ([`crate::scene::SceneArea::Implicit`]).
 
 mod regions;
 mod subtree;
@@ -12,4 +12,4 @@ pub use subtree::{
     SUBTREE_MAGIC, TILE_CLASS, TILE_ERROR_PROPERTY, TILE_REGION_PROPERTY, root_subtree,
     write_subtree,
 };
-pub use tileset::{ImplicitLayout, tileset_json};
+pub use tileset::{ImplicitLayout, Tiling, tileset_json};

@@ -75,9 +75,9 @@ impl ImplicitLayout {
     }
 }
 
-/// The tileset's schema: the buildings' class (the content's property tables) and the class of
-/// the subtrees' tile metadata, each tile's bounding region.
-fn schema() -> Value {
+/// The implicit tileset's schema: the buildings' class (the content's property tables) and the
+/// class of the subtree's tile metadata, each tile's bounding region and geometric error.
+fn implicit_schema() -> Value {
     let mut schema = BUILDING_CLASS.schema();
     schema["id"] = json!("citymesh_tileset");
     schema["classes"][TILE_CLASS] = json!({
@@ -102,33 +102,117 @@ fn schema() -> Value {
     schema
 }
 
-/// The tileset; `prefix` is put before the content and subtree templates (relative URIs). It
-/// declares the schema of the buildings' property tables in its content.
-pub fn tileset_json(layout: &ImplicitLayout, prefix: &str) -> Value {
+/// How the tileset lists its tiles.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Tiling {
+    /// Every tile written out with its measured bounding region and geometric error: every 3D
+    /// Tiles client honours them (3d-tiles-renderer reads no subtree metadata).
+    #[default]
+    Explicit,
+    /// A quadtree the client derives, with one binary subtree whose tile metadata
+    /// (`TILE_BOUNDING_REGION`, `TILE_GEOMETRIC_ERROR`) holds the measured regions and errors
+    /// (CesiumJS reads them).
+    Implicit,
+}
+
+/// The tileset of the tree over `root` whose tiles' regions and errors are `regions`. `prefix`
+/// is put before the content and subtree paths (relative URIs); `query`, when not empty, is
+/// put after each content URI. It declares the schema of the buildings' property tables in its
+/// content.
+pub fn tileset_json(
+    root: GeoBbox,
+    regions: &TileRegions,
+    tiling: Tiling,
+    prefix: &str,
+    query: &str,
+) -> Value {
+    let layout = ImplicitLayout::from_regions(root, regions);
+    let query = if query.is_empty() {
+        String::new()
+    } else {
+        format!("?{query}")
+    };
+    let (schema, tree) = match tiling {
+        Tiling::Explicit => {
+            let mut schema = BUILDING_CLASS.schema();
+            schema["id"] = json!("citymesh_tileset");
+            let content =
+                |t: ImplicitTile| format!("{prefix}content/{}/{}/{}.glb{query}", t.level, t.x, t.y);
+            let mut tree = explicit_tile(
+                regions,
+                ImplicitTile {
+                    level: 0,
+                    x: 0,
+                    y: 0,
+                },
+                &content,
+            );
+            tree["refine"] = json!("REPLACE");
+            (schema, tree)
+        }
+        Tiling::Implicit => (
+            implicit_schema(),
+            json!({
+                "boundingVolume": {"region": root_region(&layout)},
+                "refine": "REPLACE",
+                "geometricError": layout.tileset_root_error(),
+                "content": {"uri": format!("{prefix}content/{{level}}/{{x}}/{{y}}.glb{query}")},
+                "implicitTiling": {
+                    "subdivisionScheme": "QUADTREE",
+                    "availableLevels": layout.available_levels(),
+                    "subtreeLevels": layout.available_levels(),
+                    "subtrees": {"uri": format!("{prefix}subtrees/{{level}}/{{x}}/{{y}}.subtree")}
+                }
+            }),
+        ),
+    };
+    json!({
+        "asset": {"version": "1.1", "generator": concat!("citymesh ", env!("CARGO_PKG_VERSION"))},
+        "schema": schema,
+        "geometricError": layout.tileset_root_error() * 2.0,
+        "root": tree,
+    })
+}
+
+/// The region of the whole tree: the tree's square at the heights its content spans.
+fn root_region(layout: &ImplicitLayout) -> [f64; 6] {
     let r = &layout.root;
-    let region = [
+    [
         r.min_lon().to_radians(),
         r.min_lat().to_radians(),
         r.max_lon().to_radians(),
         r.max_lat().to_radians(),
         layout.min_height,
         layout.max_height,
-    ];
-    json!({
-        "asset": {"version": "1.1", "generator": concat!("citymesh ", env!("CARGO_PKG_VERSION"))},
-        "schema": schema(),
-        "geometricError": layout.tileset_root_error() * 2.0,
-        "root": {
-            "boundingVolume": {"region": region},
-            "refine": "REPLACE",
-            "geometricError": layout.tileset_root_error(),
-            "content": {"uri": format!("{prefix}content/{{level}}/{{x}}/{{y}}.glb")},
-            "implicitTiling": {
-                "subdivisionScheme": "QUADTREE",
-                "availableLevels": layout.available_levels(),
-                "subtreeLevels": layout.available_levels(),
-                "subtrees": {"uri": format!("{prefix}subtrees/{{level}}/{{x}}/{{y}}.subtree")}
-            }
-        }
-    })
+    ]
+}
+
+/// Tile `t` of an explicit tree and, above the leaves, its four children: each with its
+/// measured region and geometric error, and its content.
+fn explicit_tile(
+    regions: &TileRegions,
+    t: ImplicitTile,
+    content: &dyn Fn(ImplicitTile) -> String,
+) -> Value {
+    let region = regions.get(t).map(|r| r.to_radians()).unwrap_or_default();
+    let mut tile = json!({
+        "boundingVolume": {"region": region},
+        "geometricError": regions.error(t).unwrap_or(0.0),
+        "content": {"uri": content(t)},
+    });
+    if t.level < regions.leaf_level {
+        let children: Vec<Value> = [(0, 0), (1, 0), (0, 1), (1, 1)]
+            .into_iter()
+            .map(|(dx, dy)| {
+                let child = ImplicitTile {
+                    level: t.level + 1,
+                    x: 2 * t.x + dx,
+                    y: 2 * t.y + dy,
+                };
+                explicit_tile(regions, child, content)
+            })
+            .collect();
+        tile["children"] = children.into();
+    }
+    tile
 }
