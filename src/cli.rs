@@ -333,6 +333,30 @@ pub struct SceneArgs {
     /// Also write the scene's figures (buildings, roofs, ground, bytes, timings) as JSON here.
     #[arg(long)]
     pub stats: Option<PathBuf>,
+
+    /// The ground a building's `height` is counted from on a slope: `lowest` (Simple 3D
+    /// Buildings) or `highest` (the paper's rule).
+    #[arg(long, value_enum, default_value_t = HeightBaseArg::Lowest)]
+    pub height_base: HeightBaseArg,
+}
+
+/// `--height-base`: the ground a building's `height` is counted from (docs/method.md section 3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum HeightBaseArg {
+    /// The lowest ground along the outline, as OpenStreetMap's Simple 3D Buildings defines.
+    #[default]
+    Lowest,
+    /// The highest ground along the outline (the paper's Figure 5): taller on slopes.
+    Highest,
+}
+
+impl From<HeightBaseArg> for citymesh_core::building::HeightBase {
+    fn from(h: HeightBaseArg) -> Self {
+        match h {
+            HeightBaseArg::Lowest => Self::LowestGround,
+            HeightBaseArg::Highest => Self::HighestGround,
+        }
+    }
 }
 
 /// `--encoding` of `citymesh scene`.
@@ -594,6 +618,11 @@ pub struct ServeArgs {
     /// Log filter: error, warn, info, debug, trace, or a tracing directive like `citymesh=debug`.
     #[arg(long, env = "CITYMESH_LOG_LEVEL", default_value = "info")]
     pub log_level: String,
+
+    /// The ground a building's `height` is counted from on a slope: `lowest` (Simple 3D
+    /// Buildings) or `highest` (the paper's rule); `?height_base=` overrides it for a scene.
+    #[arg(long, env = "CITYMESH_HEIGHT_BASE", value_enum, default_value_t = HeightBaseArg::Lowest)]
+    pub height_base: HeightBaseArg,
 
     /// Largest bounding box /scene.glb accepts, in square kilometres.
     #[arg(long, env = "CITYMESH_MAX_BBOX_KM2", default_value_t = 25.0)]

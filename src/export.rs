@@ -11,7 +11,7 @@
 
 use crate::cli::{EncodingArg, ExportArgs, ExportFormat};
 use crate::error::AppError;
-use crate::pipeline::{self, Buildings};
+use crate::pipeline::{self, Buildings, MeshOptions};
 use crate::state::AppState;
 use citymesh_core::geo::{GeoBbox, ImplicitTile, TileCoord};
 use citymesh_core::mesh::Encoding;
@@ -115,7 +115,8 @@ pub async fn run(state: &AppState, args: &ExportArgs) -> anyhow::Result<ExportSu
             if path.exists() {
                 return Ok::<_, anyhow::Error>(false);
             }
-            let generated = pipeline::generate(state, area, Buildings::FromSource, None, encoding)
+            let mesh = MeshOptions::new(state, encoding);
+            let generated = pipeline::generate(state, area, Buildings::FromSource, None, mesh)
                 .await
                 .map_err(app_error)?;
             write_whole(&path, &generated.glb)?;

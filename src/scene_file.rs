@@ -70,6 +70,7 @@ pub fn export_scene(args: &SceneArgs) -> anyhow::Result<SceneReport> {
         .request(&set)
         .map_err(|e| anyhow::anyhow!("{e}"))?
         .with_encoding(args.encoding.into())
+        .with_heights(args.height_base.into())
         // One scene and nothing else to do: every core may build groups.
         .with_workers(std::thread::available_parallelism().map_or(1, usize::from));
     let terrain = request.terrain_bbox();

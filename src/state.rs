@@ -70,6 +70,8 @@ pub struct ServerState {
     pub cors_origins: Arc<Vec<String>>,
     /// What the memory caches may hold (`--memory-mb`).
     pub memory_budget: crate::cache::MemoryBudget,
+    /// The ground a building's `height` is counted from (`--height-base`).
+    pub height_base: citymesh_core::building::HeightBase,
 }
 
 impl ServerState {

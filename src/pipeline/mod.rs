@@ -14,5 +14,5 @@ mod tiles3d;
 pub use crate::generation_stats::GenerationStats;
 pub use limits::{run_blocking, within_timeout};
 pub use roofs::{ClassifiedRoofs, RoofFigures, RoofsParam, classified_roofs};
-pub use scene::{Buildings, Generated, generate};
+pub use scene::{Buildings, Generated, MeshOptions, generate};
 pub use tiles3d::{subtree, tile_regions};

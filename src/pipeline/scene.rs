@@ -6,6 +6,7 @@ use crate::generation_stats::GenerationStats;
 use crate::source::AreaBuildings;
 use crate::state::AppState;
 use bytes::Bytes;
+use citymesh_core::building::HeightBase;
 use citymesh_core::building::set::BuildingSet;
 use citymesh_core::mesh::Encoding;
 use citymesh_core::scene::{RoofChoice, SceneArea, SceneRequest};
@@ -44,20 +45,34 @@ pub enum Buildings {
 /// a generation slot (503 when none frees up in time) and generates on the blocking pool. The
 /// whole takes at most `--request-timeout-s` (503 after that). 3D Tiles content without a
 /// building group is its ground alone.
-/// `roofs` gives shapes to buildings without a `roof:shape` tag (classified roofs); `encoding` is
-/// how the GLB stores vertices.
+/// `roofs` gives shapes to buildings without a `roof:shape` tag (classified roofs); `mesh` says
+/// how the GLB stores vertices and where heights are counted from.
 pub async fn generate(
     state: &AppState,
     area: SceneArea,
     buildings: Buildings,
     roofs: Option<Arc<RoofChoice>>,
-    encoding: Encoding,
+    mesh: MeshOptions,
 ) -> Result<Generated, AppError> {
-    within_timeout(
-        state,
-        generate_within(state, area, buildings, roofs, encoding),
-    )
-    .await
+    within_timeout(state, generate_within(state, area, buildings, roofs, mesh)).await
+}
+
+/// How a generated mesh is made beyond its area and buildings.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MeshOptions {
+    pub encoding: Encoding,
+    /// The ground a building's `height` is counted from.
+    pub heights: HeightBase,
+}
+
+impl MeshOptions {
+    /// `encoding`, with heights as the server counts them (`--height-base`).
+    pub fn new(state: &AppState, encoding: Encoding) -> Self {
+        Self {
+            encoding,
+            heights: state.height_base,
+        }
+    }
 }
 
 async fn generate_within(
@@ -65,7 +80,7 @@ async fn generate_within(
     area: SceneArea,
     buildings: Buildings,
     roofs: Option<Arc<RoofChoice>>,
-    encoding: Encoding,
+    mesh: MeshOptions,
 ) -> Result<Generated, AppError> {
     let bbox = area
         .bbox()
@@ -88,7 +103,8 @@ async fn generate_within(
         let mut request: SceneRequest<'_> = area
             .request(&buildings.set)
             .map_err(|e| AppError::bad_request("invalid_tile", e.to_string()))?
-            .with_encoding(encoding);
+            .with_encoding(mesh.encoding)
+            .with_heights(mesh.heights);
         if let Some(roofs) = &roofs {
             request = request.with_roofs(roofs);
         }

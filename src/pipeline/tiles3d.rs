@@ -33,6 +33,7 @@ pub async fn tile_regions(state: &AppState, root: GeoBbox) -> Result<Arc<TileReg
             within_timeout(state, async {
                 let buildings = state.source.buildings(&root).await?;
                 let dem = state.dem.clone();
+                let heights = state.height_base;
                 run_blocking(state, move || {
                     let variants = if classified {
                         roof_variants(&buildings.set)
@@ -45,6 +46,7 @@ pub async fn tile_regions(state: &AppState, root: GeoBbox) -> Result<Arc<TileReg
                         &buildings.set,
                         &|b| dem.lookup(b).model,
                         &variants,
+                        heights,
                         &|| false,
                     )
                     .ok_or_else(|| AppError::internal("measuring the tiles stopped"))?;

@@ -1,9 +1,10 @@
 //! Query parameters shared by several routes, and their checks.
 
 use crate::error::AppError;
-use crate::pipeline::RoofsParam;
-use crate::state::Limits;
+use crate::pipeline::{MeshOptions, RoofsParam};
+use crate::state::{AppState, Limits};
 use axum::http::{HeaderMap, header};
+use citymesh_core::building::HeightBase;
 use citymesh_core::geo::GeoBbox;
 use citymesh_core::mesh::Encoding;
 use serde::Deserialize;
@@ -79,6 +80,46 @@ pub struct BboxQuery {
     /// Without it, an `encoding` parameter in `Accept: model/gltf-binary; encoding=...` is used.
     #[param(inline)]
     pub encoding: Option<EncodingParam>,
+    /// The ground a building's `height` is counted from on a slope: `lowest` (Simple 3D
+    /// Buildings; the default unless the server says otherwise) or `highest` (the paper's rule).
+    #[param(inline)]
+    pub height_base: Option<HeightBaseParam>,
+}
+
+/// The ground a building's `height` is counted from, as asked with `?height_base=`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, utoipa::ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum HeightBaseParam {
+    /// The lowest ground along the outline, as OpenStreetMap's Simple 3D Buildings defines
+    /// `height` (the default unless the server's `--height-base` says otherwise).
+    Lowest,
+    /// The highest ground along the outline (the paper's Figure 5 rule): on a slope, buildings
+    /// stand taller than tagged by the ground's rise under them.
+    Highest,
+}
+
+impl From<HeightBaseParam> for HeightBase {
+    fn from(h: HeightBaseParam) -> Self {
+        match h {
+            HeightBaseParam::Lowest => HeightBase::LowestGround,
+            HeightBaseParam::Highest => HeightBase::HighestGround,
+        }
+    }
+}
+
+/// How a scene is meshed: `?encoding=` (or the `Accept` hint, else `default`) and
+/// `?height_base=` (else the server's `--height-base`).
+pub fn mesh_options(
+    state: &AppState,
+    encoding: Option<EncodingParam>,
+    headers: &HeaderMap,
+    default: Encoding,
+    heights: Option<HeightBaseParam>,
+) -> MeshOptions {
+    MeshOptions {
+        encoding: encoding_for(encoding, headers, default),
+        heights: heights.map_or(state.height_base, HeightBase::from),
+    }
 }
 
 /// Where roof shapes come from, and how the GLB is encoded.

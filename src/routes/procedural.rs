@@ -6,7 +6,7 @@ use super::conditional::{conditional_response, generated_response};
 use super::schemas::GlbBytes;
 use crate::cache::etag_header;
 use crate::error::{AppError, ErrorBody};
-use crate::pipeline::{Buildings, generate, run_blocking};
+use crate::pipeline::{Buildings, MeshOptions, generate, run_blocking};
 use crate::state::AppState;
 use axum::extract::rejection::QueryRejection;
 use axum::extract::{Query, State};
@@ -199,7 +199,7 @@ pub async fn procedural_glb(
         SceneArea::Given(bbox),
         Buildings::Given(set),
         None,
-        Encoding::Plain,
+        MeshOptions::new(&state, Encoding::Plain),
     )
     .await?;
     Ok(generated_response(

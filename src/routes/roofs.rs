@@ -4,11 +4,12 @@
 use super::conditional::{cached_response, generated_response};
 use crate::cache::TileKey;
 use crate::error::AppError;
-use crate::pipeline::{Buildings, Generated, RoofFigures, RoofsParam, classified_roofs, generate};
+use crate::pipeline::{
+    Buildings, Generated, MeshOptions, RoofFigures, RoofsParam, classified_roofs, generate,
+};
 use crate::state::AppState;
 use axum::http::{HeaderMap, HeaderName, HeaderValue};
 use axum::response::Response;
-use citymesh_core::mesh::Encoding;
 use citymesh_core::scene::SceneArea;
 
 /// The header saying how complete classified roofs are.
@@ -28,8 +29,8 @@ pub async fn cached_tile(
             let (cached, level) = state
                 .tiles
                 .get_or_generate(key, || async {
-                    let g =
-                        generate(state, area, Buildings::FromSource, None, key.encoding).await?;
+                    let mesh = MeshOptions::new(state, key.encoding);
+                    let g = generate(state, area, Buildings::FromSource, None, mesh).await?;
                     Ok::<_, AppError>((g.glb, g.stats))
                 })
                 .await?;
@@ -52,7 +53,7 @@ pub async fn cached_tile(
                         area,
                         Buildings::Loaded(plan.buildings),
                         Some(plan.choice),
-                        key.encoding,
+                        MeshOptions::new(state, key.encoding),
                     )
                     .await?;
                     Ok::<_, AppError>((g.glb, g.stats))
@@ -66,28 +67,31 @@ pub async fn cached_tile(
 }
 
 /// A scene with roofs as asked, and the roof figures when classified. Box scenes with roofs from
-/// tags come from the scene cache when they were made before (classified ones depend on
-/// predictions that keep arriving, and are made each time).
+/// tags and heights as the server counts them come from the scene cache when they were made
+/// before (classified ones depend on predictions that keep arriving, and are made each time).
 pub async fn generate_with_roofs(
     state: &AppState,
     area: SceneArea,
     roofs: RoofsParam,
-    encoding: Encoding,
+    mesh: MeshOptions,
 ) -> Result<(Generated, Option<RoofFigures>), AppError> {
     match roofs {
         RoofsParam::Osm => {
-            let SceneArea::Bbox(bbox) = area else {
-                return Ok((
-                    generate(state, area, Buildings::FromSource, None, encoding).await?,
-                    None,
-                ));
+            let bbox = match area {
+                SceneArea::Bbox(b) if mesh.heights == state.height_base => b,
+                _ => {
+                    return Ok((
+                        generate(state, area, Buildings::FromSource, None, mesh).await?,
+                        None,
+                    ));
+                }
             };
-            let key = TileKey::bbox(bbox).with_encoding(encoding);
+            let key = TileKey::bbox(bbox).with_encoding(mesh.encoding);
             let (scene, hit) = state
                 .tiles
                 .scenes
                 .get_or_generate(key, || async {
-                    let g = generate(state, area, Buildings::FromSource, None, encoding).await?;
+                    let g = generate(state, area, Buildings::FromSource, None, mesh).await?;
                     Ok::<_, AppError>((g.glb, g.stats))
                 })
                 .await?;
@@ -105,7 +109,7 @@ pub async fn generate_with_roofs(
                 area,
                 Buildings::Loaded(plan.buildings),
                 Some(plan.choice),
-                encoding,
+                mesh,
             )
             .await?;
             Ok((generated, Some(plan.figures)))

@@ -1,12 +1,12 @@
 //! `GET /scene?bbox=` and `GET /scene.glb?bbox=`: the mesh of an area (or, from `/scene`, its
 //! statistics as JSON).
 
-use super::params::{BboxQuery, EncodingParam, encoding_for, parse_bbox};
+use super::params::{BboxQuery, EncodingParam, HeightBaseParam, mesh_options, parse_bbox};
 use super::roofs::{generate_with_roofs, scene_response};
 use super::scene_stats::SceneStats;
 use super::schemas::GlbBytes;
 use crate::error::{AppError, ErrorBody};
-use crate::pipeline::{Generated, RoofFigures, RoofsParam};
+use crate::pipeline::{Generated, MeshOptions, RoofFigures, RoofsParam};
 use crate::state::AppState;
 use axum::Json;
 use axum::extract::rejection::QueryRejection;
@@ -54,6 +54,10 @@ pub struct SceneQuery {
     /// `/scene.glb`.
     #[param(inline)]
     pub encoding: Option<EncodingParam>,
+    /// The ground a building's `height` is counted from on a slope: `lowest` (Simple 3D
+    /// Buildings; the default unless the server says otherwise) or `highest` (the paper's rule).
+    #[param(inline)]
+    pub height_base: Option<HeightBaseParam>,
 }
 
 /// The mesh of a bounding box (binary glTF), or its statistics (JSON).
@@ -80,8 +84,14 @@ pub async fn scene(
 ) -> Result<Response, AppError> {
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
     let format = query.format.unwrap_or_else(|| negotiate(&request_headers));
-    let encoding = encoding_for(query.encoding, &request_headers, Encoding::Plain);
-    let generated = generate_box(&state, query.bbox.as_deref(), query.roofs, encoding).await?;
+    let mesh = mesh_options(
+        &state,
+        query.encoding,
+        &request_headers,
+        Encoding::Plain,
+        query.height_base,
+    );
+    let generated = generate_box(&state, query.bbox.as_deref(), query.roofs, mesh).await?;
     Ok(match format {
         SceneFormat::Glb => scene_response(&request_headers, generated, SCENE_CACHE_CONTROL),
         SceneFormat::Json => {
@@ -109,14 +119,14 @@ async fn generate_box(
     state: &AppState,
     bbox: Option<&str>,
     roofs: Option<RoofsParam>,
-    encoding: Encoding,
+    mesh: MeshOptions,
 ) -> Result<(Generated, Option<RoofFigures>), AppError> {
     let bbox = parse_bbox(bbox, &state.limits)?;
     generate_with_roofs(
         state,
         SceneArea::Bbox(bbox),
         roofs.unwrap_or_default(),
-        encoding,
+        mesh,
     )
     .await
 }
@@ -160,8 +170,14 @@ pub async fn scene_glb(
     query: Result<Query<BboxQuery>, QueryRejection>,
 ) -> Result<Response, AppError> {
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
-    let encoding = encoding_for(query.encoding, &request_headers, Encoding::Plain);
-    let generated = generate_box(&state, query.bbox.as_deref(), query.roofs, encoding).await?;
+    let mesh = mesh_options(
+        &state,
+        query.encoding,
+        &request_headers,
+        Encoding::Plain,
+        query.height_base,
+    );
+    let generated = generate_box(&state, query.bbox.as_deref(), query.roofs, mesh).await?;
     Ok(scene_response(
         &request_headers,
         generated,

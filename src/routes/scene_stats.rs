@@ -3,11 +3,12 @@
 use super::params::{BboxQuery, parse_bbox};
 use super::roofs::generate_with_roofs;
 use crate::error::{AppError, ErrorBody};
-use crate::pipeline::{Generated, RoofFigures, RoofsParam};
+use crate::pipeline::{Generated, MeshOptions, RoofFigures, RoofsParam};
 use crate::state::AppState;
 use axum::Json;
 use axum::extract::rejection::QueryRejection;
 use axum::extract::{Query, State};
+use citymesh_core::building::HeightBase;
 use citymesh_core::mesh::Encoding;
 use citymesh_core::scene::SceneArea;
 use serde::Serialize;
@@ -135,11 +136,16 @@ pub async fn scene_stats(
     let bbox = parse_bbox(query.bbox.as_deref(), &state.limits)?;
     let area = SceneArea::Bbox(bbox);
     let roofs = query.roofs.unwrap_or_default();
-    let (generated, figures) = generate_with_roofs(&state, area, roofs, Encoding::Plain).await?;
+    let mesh = MeshOptions {
+        encoding: Encoding::Plain,
+        heights: query
+            .height_base
+            .map_or(state.height_base, HeightBase::from),
+    };
+    let (generated, figures) = generate_with_roofs(&state, area, roofs, mesh).await?;
     let mut stats = SceneStats::of(&generated, figures);
     if roofs == RoofsParam::Classified {
-        let (plain, _) =
-            generate_with_roofs(&state, area, RoofsParam::Osm, Encoding::Plain).await?;
+        let (plain, _) = generate_with_roofs(&state, area, RoofsParam::Osm, mesh).await?;
         stats.without_classifier = Some(PaperFigures::of(&plain));
         stats.imagery_attribution = Some(state.roofs.imagery_attribution.clone());
     }

@@ -3,20 +3,33 @@
 //! covers it. This is how a user fixes a wrong roof shape in real data and rebuilds.
 
 use super::conditional::generated_response;
+use super::params::HeightBaseParam;
 use super::schemas::GlbBytes;
 use crate::error::{AppError, ErrorBody};
-use crate::pipeline::{Buildings, generate, run_blocking};
+use crate::pipeline::{Buildings, MeshOptions, generate, run_blocking};
 use crate::state::AppState;
 use axum::body::Body;
-use axum::extract::State;
+use axum::extract::rejection::QueryRejection;
+use axum::extract::{Query, State};
 use axum::http::{HeaderMap, StatusCode, header};
 use axum::response::Response;
+use citymesh_core::building::HeightBase;
 use citymesh_core::building::set::BuildingSet;
 use citymesh_core::geo::GeoBbox;
 use citymesh_core::geojson::{GeoJsonErrorKind, read_geojson};
 use citymesh_core::mesh::Encoding;
 use citymesh_core::scene::SceneArea;
 use std::sync::Arc;
+
+/// The query of `POST /scene.glb`.
+#[derive(Debug, serde::Deserialize, utoipa::IntoParams)]
+#[into_params(parameter_in = Query)]
+pub struct UploadQuery {
+    /// The ground a building's `height` is counted from on a slope: `lowest` (Simple 3D
+    /// Buildings; the default unless the server says otherwise) or `highest` (the paper's rule).
+    #[param(inline)]
+    pub height_base: Option<HeightBaseParam>,
+}
 
 /// Ground around the buildings when the collection has no `bbox`, metres.
 const MARGIN_M: f64 = 20.0;
@@ -40,7 +53,7 @@ fn document(status: StatusCode, code: &'static str, detail: String) -> AppError 
 /// `roof:direction`, `building:colour`, `roof:colour`, `building:part`. The collection's `bbox`
 /// (if given) is the scene's extent; otherwise the features' extent plus 20 m. Errors name the
 /// feature index and the field.
-#[utoipa::path(post, path = "/scene.glb", tag = "meshes",
+#[utoipa::path(post, path = "/scene.glb", tag = "meshes", params(UploadQuery),
     request_body(content = serde_json::Value, content_type = "application/geo+json",
         description = "A GeoJSON FeatureCollection of buildings"),
     responses(
@@ -55,8 +68,10 @@ fn document(status: StatusCode, code: &'static str, detail: String) -> AppError 
 pub async fn post_scene(
     State(state): State<AppState>,
     request_headers: HeaderMap,
+    query: Result<Query<UploadQuery>, QueryRejection>,
     body: Body,
 ) -> Result<Response, AppError> {
+    let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
     let content_type = request_headers
         .get(header::CONTENT_TYPE)
         .and_then(|v| v.to_str().ok())
@@ -139,7 +154,12 @@ pub async fn post_scene(
         SceneArea::Given(bbox),
         Buildings::Given(set),
         None,
-        Encoding::Plain,
+        MeshOptions {
+            encoding: Encoding::Plain,
+            heights: query
+                .height_base
+                .map_or(state.height_base, HeightBase::from),
+        },
     )
     .await?;
     Ok(generated_response(&request_headers, generated, "no-store"))

@@ -6,7 +6,7 @@ use super::roofs::cached_tile;
 use super::schemas::GlbBytes;
 use crate::cache::TileKey;
 use crate::error::{AppError, ErrorBody};
-use crate::pipeline::{Buildings, RoofsParam, generate};
+use crate::pipeline::{Buildings, MeshOptions, RoofsParam, generate};
 use crate::state::AppState;
 use axum::extract::rejection::PathRejection;
 use axum::extract::{Path, RawQuery, Request, State};
@@ -79,7 +79,7 @@ pub async fn tile_glb(
                         key.tile.area(),
                         Buildings::FromSource,
                         None,
-                        encoding,
+                        MeshOptions::new(&state, encoding),
                     )
                     .await?;
                     Ok::<_, AppError>((g.glb, g.stats))

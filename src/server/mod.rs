@@ -135,11 +135,13 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
             )
         }
     };
+    let height_base = citymesh_core::building::HeightBase::from(args.height_base);
     let data_version = format!(
-        "{}-{}-{}",
+        "{}-{}-{}-{}",
         env!("CARGO_PKG_VERSION"),
         dem.fingerprint(),
-        source.fingerprint()
+        source.fingerprint(),
+        height_base.name()
     );
     let store =
         TileStore::bounded(pool.clone(), args.tile_store_mb.saturating_mul(1 << 20)).await?;
@@ -209,6 +211,7 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         roofs,
         cors_origins: Arc::new(args.cors_origin.clone()),
         memory_budget: memory,
+        height_base,
         dem: Arc::new(dem),
         source,
         tiles,

@@ -8,6 +8,7 @@ use super::cluster::part_of;
 use super::feature::BuildingFeature;
 use super::footprint::{Footprint, FootprintError, FootprintRing, NodeKey};
 use super::group::{Volume, mesh_group};
+use super::height_base::HeightBase;
 use super::params::BuildingParams;
 use super::roof::RoofShape;
 use super::roof_surface::RoofSurface;
@@ -26,6 +27,8 @@ pub struct BuildingContext<'a> {
     pub elevation: &'a ElevationModel,
     /// Truncate buildings at this box (`/scene.glb`); `None` keeps them whole (tiles).
     pub clip: Option<GeoBbox>,
+    /// The ground `height` is counted from.
+    pub heights: HeightBase,
 }
 
 /// Pieces of outline left over by parts smaller than this (m²) are slivers, not rooms.
@@ -115,7 +118,7 @@ pub fn generate_cluster_until(
                 .unwrap_or_default();
             let (elev_min, elev_max) = ctx.elevation.height_range_along(&ring);
             let floor = elev_min + params.min_height;
-            let top = elev_max + params.height;
+            let top = ctx.heights.top(elev_min, elev_max, params.height);
             let surface = surface.with_heights(top, params.roof_height);
 
             // Outline minus its parts, then truncated at the scene border.

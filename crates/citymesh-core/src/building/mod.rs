@@ -1,6 +1,7 @@
 //! Buildings: from OSM building records to closed volumes in the local frame.
 //!
-//! Tags become parameters ([`tags`], [`params`], every default in [`defaults`]); the footprint
+//! Tags become parameters ([`tags`], [`params`], every default in [`defaults`]), counted from
+//! the ground [`height_base`] says; the footprint
 //! ([`footprint`]) gets its alternative coordinates ([`axes`]); a roof shape ([`roof`]) over the
 //! virtual rectangle gives the roof surface ([`roof_surface`]), whose dividing segments cut the
 //! footprint ([`boundary`]); the roof and floor are triangulated ([`triangulate`]) and walls added
@@ -17,6 +18,7 @@ pub mod feature;
 pub mod footprint;
 pub mod generate;
 pub mod group;
+pub mod height_base;
 mod length;
 pub mod params;
 pub mod roof;
@@ -31,4 +33,5 @@ pub mod walls;
 pub use cluster::clusters;
 pub use feature::{BuildingFeature, RoofOrigin};
 pub use generate::{BuildingContext, generate_cluster, generate_cluster_until};
+pub use height_base::HeightBase;
 pub use stats::BuildingStats;

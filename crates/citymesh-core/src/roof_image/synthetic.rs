@@ -724,6 +724,7 @@ impl SceneBuilder {
             frame: &self.frame,
             elevation: &self.elevation,
             clip: None,
+            heights: Default::default(),
         };
         let mut part = Mesh::default();
         let mut stats = BuildingStats::default();

@@ -12,7 +12,7 @@ pub use request::{SceneArea, SceneOutput, SceneRequest};
 pub use roof_choice::RoofChoice;
 
 use crate::building::feature::property_table;
-use crate::building::{BuildingContext, BuildingStats, generate_cluster_until};
+use crate::building::{BuildingContext, BuildingStats, HeightBase, generate_cluster_until};
 use crate::geo::{GeoBbox, LocalFrame};
 use crate::mesh::{EncodedGlb, Encoding, Mesh, Placement, encode_glb};
 use crate::osm::BuildingRecord;
@@ -27,6 +27,26 @@ pub enum GroundDetail {
     Dem,
     /// A regular grid of this many cells per side (coarse levels of detail).
     Grid(u32),
+}
+
+/// How a scene is drawn, beyond its box and buildings.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SceneRules {
+    pub border: Border,
+    pub ground: GroundDetail,
+    /// The ground a building's `height` is counted from.
+    pub heights: HeightBase,
+}
+
+impl SceneRules {
+    /// Full detail, buildings meeting the border as `border` says, heights by Simple 3D Buildings.
+    pub fn new(border: Border) -> Self {
+        Self {
+            border,
+            ground: GroundDetail::Dem,
+            heights: HeightBase::default(),
+        }
+    }
 }
 
 /// How buildings meet the border of the scene's box.
@@ -64,16 +84,7 @@ impl Scene {
         clusters: &[Vec<&BuildingRecord>],
         border: Border,
     ) -> Self {
-        Self::build(
-            model,
-            bbox,
-            clusters,
-            border,
-            GroundDetail::Dem,
-            &|| false,
-            1,
-        )
-        .0
+        Self::build(model, bbox, clusters, SceneRules::new(border), &|| false, 1).0
     }
 
     /// Like [`Scene::new`], but asks `stop` before each group of buildings and gives up (`None`)
@@ -93,8 +104,7 @@ impl Scene {
             model,
             bbox,
             clusters,
-            border,
-            GroundDetail::Dem,
+            SceneRules::new(border),
             stop,
             workers,
         );
@@ -106,22 +116,22 @@ impl Scene {
         model: &ElevationModel,
         bbox: &GeoBbox,
         clusters: &[Vec<&BuildingRecord>],
-        border: Border,
-        ground: GroundDetail,
+        rules: SceneRules,
         stop: &(dyn Fn() -> bool + Sync),
         workers: usize,
     ) -> (Self, bool) {
         let (lon, lat) = bbox.center();
         let frame = LocalFrame::new(lon, lat, 0.0);
         let mut mesh = Mesh::default();
-        let ground = match ground {
+        let ground = match rules.ground {
             GroundDetail::Dem => build_ground(model, bbox, &frame, &mut mesh),
             GroundDetail::Grid(cells) => build_coarse_ground(model, bbox, &frame, cells, &mut mesh),
         };
         let ctx = BuildingContext {
             frame: &frame,
             elevation: model,
-            clip: (border == Border::Truncate).then_some(*bbox),
+            clip: (rules.border == Border::Truncate).then_some(*bbox),
+            heights: rules.heights,
         };
         let runs = split_runs(clusters, workers);
         let (buildings, cluster_triangles, complete) = if runs.len() <= 1 {

@@ -5,9 +5,9 @@
 //! result is placed on the Earth. Servers build one [`SceneRequest`] and hand it the data.
 
 use super::level_of_detail::{LevelOfDetail, Simplified};
-use super::{Border, GroundDetail, RoofChoice, Scene};
+use super::{Border, GroundDetail, RoofChoice, Scene, SceneRules};
 use crate::building::set::{BuildingSet, ClusterInfo, extent_with};
-use crate::building::{BuildingStats, RoofOrigin};
+use crate::building::{BuildingStats, HeightBase, RoofOrigin};
 use crate::geo::{BboxError, GeoBbox, ImplicitTile, LocalFrame, TileCoord};
 use crate::mesh::{EncodedGlb, Encoding, Placement};
 use crate::osm::BuildingRecord;
@@ -84,6 +84,7 @@ impl SceneArea {
             roofs: None,
             workers: 1,
             detail,
+            heights: HeightBase::default(),
         })
     }
 }
@@ -107,6 +108,8 @@ pub struct SceneRequest<'a> {
     pub workers: usize,
     /// How coarse the content is (full detail but for implicit tiles above the leaves).
     pub detail: LevelOfDetail,
+    /// The ground a building's `height` is counted from.
+    pub heights: HeightBase,
 }
 
 /// A generated, encoded scene and what went into it.
@@ -141,6 +144,11 @@ impl<'a> SceneRequest<'a> {
             workers: workers.max(1),
             ..self
         }
+    }
+
+    /// The same request with heights counted from `heights`.
+    pub fn with_heights(self, heights: HeightBase) -> Self {
+        Self { heights, ..self }
     }
 
     /// The same request encoded with `encoding`.
@@ -242,15 +250,12 @@ impl<'a> SceneRequest<'a> {
         } else {
             GroundDetail::Grid(LevelOfDetail::GROUND_CELLS)
         };
-        Scene::build(
-            model,
-            &self.bbox,
-            &as_refs(&records),
-            self.border,
+        let rules = SceneRules {
+            border: self.border,
             ground,
-            stop,
-            workers,
-        )
+            heights: self.heights,
+        };
+        Scene::build(model, &self.bbox, &as_refs(&records), rules, stop, workers)
     }
 
     fn output(scene: Scene, placement: Placement, encoding: Encoding) -> SceneOutput {

@@ -4,6 +4,7 @@
 //! metadata with the semantic `TILE_BOUNDING_REGION`, so a client's bounding volume encloses
 //! the content and its heights are tight.
 
+use crate::building::HeightBase;
 use crate::building::set::BuildingSet;
 use crate::geo::{GeoBbox, ImplicitTile, morton};
 use crate::scene::{RoofChoice, SceneArea, SceneRequest};
@@ -190,8 +191,9 @@ impl TileRegions {
 
 /// The regions and geometric errors of the tree over `root` with leaves at `leaf_level`,
 /// measured by generating each tile's content (coarser above the leaves) from `set` on the
-/// model `model_for` gives for its terrain box, once per roof variant in `variants` (none: roofs
-/// from tags alone), so that content made with any of them lies inside. `stop` is asked before
+/// model `model_for` gives for its terrain box with heights counted from `heights`, once per roof
+/// variant in `variants` (none: roofs from tags alone), so that content made with any of them
+/// lies inside. `stop` is asked before
 /// each tile; `None` when it said so.
 pub fn measure_regions(
     root: &GeoBbox,
@@ -199,6 +201,7 @@ pub fn measure_regions(
     set: &BuildingSet,
     model_for: &dyn Fn(&GeoBbox) -> ElevationModel,
     variants: &[RoofChoice],
+    heights: HeightBase,
     stop: &dyn Fn() -> bool,
 ) -> Option<TileRegions> {
     let mut stopped = false;
@@ -212,7 +215,8 @@ pub fn measure_regions(
             }
             let request = SceneArea::Implicit { root: *root, tile }
                 .request(set)
-                .ok()?;
+                .ok()?
+                .with_heights(heights);
             let model = model_for(&request.terrain_bbox());
             let extent = |r: &SceneRequest<'_>| r.scene(&model).geographic_extent();
             let mut region = extent(&request);
