@@ -212,6 +212,87 @@ async fn posting_the_procedural_geojson_gives_the_procedural_mesh() {
     assert!(posted.body == expected.body, "the meshes differ");
 }
 
+#[tokio::test]
+async fn every_simple_3d_buildings_roof_shape_is_drawn_as_itself() {
+    let (app, _db) = app().await;
+    // Each value as OpenStreetMap writes it, with the shape citymesh draws for it.
+    let shapes = [
+        ("flat", "flat"),
+        ("gabled", "gabled"),
+        ("hipped", "hipped"),
+        ("pyramidal", "pyramidal"),
+        ("skillion", "skillion"),
+        ("half-hipped", "half-hipped"),
+        ("gambrel", "gambrel"),
+        ("mansard", "mansard"),
+        ("saltbox", "saltbox"),
+        ("double_saltbox", "double_saltbox"),
+        ("quadruple_saltbox", "quadruple_saltbox"),
+        ("side_hipped", "side_hipped"),
+        ("side_half-hipped", "side_half-hipped"),
+        ("sawtooth", "sawtooth"),
+        ("crosspitched", "crosspitched"),
+        ("round", "round"),
+        ("dome", "dome"),
+        ("onion", "onion"),
+        ("cone", "cone"),
+        ("frustum", "frustum"),
+        ("frustrum", "frustum"),
+        // Drawn by their parts: the outline is flat.
+        ("many", "flat"),
+        ("complex", "flat"),
+    ];
+    // 20 m x 12 m houses in a row, 12 m tall with 4 m of roof, on flat ground.
+    let features: Vec<Value> = shapes
+        .iter()
+        .enumerate()
+        .map(|(i, (tag, _))| {
+            let w = 8.4 + i as f64 * 0.0004;
+            let (e, n) = (w + 20.0 / 73_000.0, 49.01 + 12.0 / 111_200.0);
+            json!({"type": "Feature",
+                "properties": {"height": 12, "roof:height": 4, "roof:shape": tag},
+                "geometry": {"type": "Polygon", "coordinates": [[[w, 49.01], [e, 49.01], [e, n], [w, n], [w, 49.01]]]}})
+        })
+        .collect();
+    let a = post(&app, "application/geo+json", collection(features)).await;
+    assert_eq!(
+        a.status,
+        StatusCode::OK,
+        "{}",
+        String::from_utf8_lossy(&a.body)
+    );
+    assert_valid_glb(&a.body);
+    assert_eq!(a.header("x-citymesh-buildings"), shapes.len().to_string());
+    // Every shape came from its tag: none was unsupported (drawn flat instead).
+    assert_eq!(
+        a.header("x-citymesh-roof-shapes-from-tags-percent"),
+        "100.0"
+    );
+    let rows = common::decode::feature_rows(&a.body);
+    let drawn: Vec<&str> = rows
+        .iter()
+        .map(|r| r["roof_shape"].as_str().unwrap())
+        .collect();
+    let want: Vec<&str> = shapes.iter().map(|(_, s)| *s).collect();
+    assert_eq!(drawn, want);
+    assert!(rows.iter().all(|r| r["roof_source"] == "tag"));
+    // Each roof reaches the top, 12 m over the ground (0 m here), and a pitched one comes down
+    // to its eaves, 8 m, somewhere.
+    let triangles = common::decode::triangles(&a.body);
+    for (i, (tag, shape)) in shapes.iter().enumerate() {
+        let heights: Vec<f64> = triangles
+            .iter()
+            .filter(|t| t.material == "roof" && t.feature == Some(i as u32))
+            .flat_map(|t| t.corners.map(|c| c[1]))
+            .collect();
+        let top = heights.iter().copied().fold(f64::MIN, f64::max);
+        let low = heights.iter().copied().fold(f64::MAX, f64::min);
+        assert!((top - 12.0).abs() < 1e-3, "{tag}: top {top}");
+        let eaves = if *shape == "flat" { 12.0 } else { 8.0 };
+        assert!((low - eaves).abs() < 1e-3, "{tag}: lowest roof point {low}");
+    }
+}
+
 /// A valid single building, to break one piece at a time.
 fn building() -> Value {
     json!({"type": "Feature", "properties": {"height": 10, "roof:shape": "gabled"},

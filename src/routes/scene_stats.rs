@@ -74,7 +74,7 @@ pub struct BuildingFigures {
     /// Generated roofs per shape.
     pub roof_shapes: BTreeMap<String, usize>,
     /// Roof shapes from a `roof:shape` tag, from the classifier, by default (no tag: flat), and
-    /// tags naming a shape outside the paper's eight (rendered flat).
+    /// tags naming a shape citymesh does not draw (rendered flat).
     pub roof_shape_from_tag: usize,
     pub roof_shape_from_classifier: usize,
     pub roof_shape_default: usize,

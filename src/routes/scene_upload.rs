@@ -48,8 +48,11 @@ fn document(status: StatusCode, code: &'static str, detail: String) -> AppError 
 ///
 /// Send a GeoJSON FeatureCollection (`Content-Type: application/geo+json` or
 /// `application/json`) of Polygon and MultiPolygon features, holes allowed, with OSM-style
-/// properties: `height`, `min_height`, `building:levels`, `roof:shape` (flat, gabled, hipped,
-/// pyramidal, skillion, half-hipped, gambrel, mansard), `roof:height`, `roof:orientation`,
+/// properties: `height`, `min_height`, `building:levels`, `roof:shape` (every shape of Simple 3D
+/// Buildings: flat, gabled, hipped, pyramidal, skillion, half-hipped, gambrel, mansard, saltbox,
+/// double_saltbox, quadruple_saltbox, side_hipped, side_half-hipped, sawtooth, crosspitched,
+/// round, dome, onion, cone, frustum; `many` and `complex` draw the outline flat), `roof:height`,
+/// `roof:orientation`,
 /// `roof:direction`, `building:colour`, `roof:colour`, `building:part`. The collection's `bbox`
 /// (if given) is the scene's extent; otherwise the features' extent plus 20 m. Errors name the
 /// feature index and the field.

@@ -1,4 +1,4 @@
-//! The eight roof shapes on a 20 m x 8 m rectangle, axis-aligned and rotated: every roof vertex
+//! Every roof shape on a 20 m x 8 m rectangle, axis-aligned and rotated: every roof vertex
 //! has the height the descending level functions of docs/method.md section 6 give (written out here
 //! independently of the generator), the shapes' characteristic points are there, and the limit
 //! cases equal the shapes they reduce to, vertex for vertex.
@@ -73,10 +73,101 @@ fn g(p: f64, t: f64) -> f64 {
     }
 }
 
+/// Linear between the points of a profile (t, DLF) rising from (0, 0) to (1, 1); 1 beyond.
+fn along(profile: &[(f64, f64)], t: f64) -> f64 {
+    for w in profile.windows(2) {
+        let ((t0, d0), (t1, d1)) = (w[0], w[1]);
+        if t <= t1 {
+            return d0 + (d1 - d0) * (t - t0) / (t1 - t0);
+        }
+    }
+    1.0
+}
+
+/// A half circle sampled at sin(k pi / 12): (t, 1 - sqrt(1 - t^2)).
+fn half_circle() -> Vec<(f64, f64)> {
+    (0..=6)
+        .map(|k| {
+            let a = f64::from(k) * std::f64::consts::PI / 12.0;
+            (a.sin(), 1.0 - a.cos())
+        })
+        .collect()
+}
+
+/// The radius of the 16-sided polygon inscribed in the unit circle (a vertex on +x') through
+/// (x', y'): the largest projection on its sides' normals.
+fn polygon_radius(x: f64, y: f64) -> f64 {
+    let half = std::f64::consts::PI / 16.0;
+    (0..16)
+        .map(|j| {
+            let m = (2.0 * f64::from(j) + 1.0) * half;
+            (x * m.cos() + y * m.sin()) / half.cos()
+        })
+        .fold(f64::MIN, f64::max)
+}
+
 /// The DLF of docs/method.md section 6 at (x', y') for the defaults (HE = GP = MP = 0.7).
 fn expected_dlf(shape: RoofShape, [x, y]: [f64; 2]) -> f64 {
     let x_h = 1.0 - RY / RX;
     match shape {
+        // The ridge a quarter of the width from +y'.
+        RoofShape::Saltbox => {
+            if y >= 0.5 {
+                (y - 0.5) / 0.5
+            } else {
+                (0.5 - y) / 1.5
+            }
+        }
+        // Gambrel and mansard profiles with their kink at 0.3: steep above, shallow below.
+        RoofShape::DoubleSaltbox => g(0.3, y.abs()),
+        RoofShape::QuadrupleSaltbox => {
+            let dx = if x.abs() <= x_h {
+                0.0
+            } else {
+                g(0.3, (x.abs() - x_h) / (1.0 - x_h))
+            };
+            dx.max(g(0.3, y.abs()))
+        }
+        RoofShape::SideHipped => {
+            let dx = if x <= x_h {
+                0.0
+            } else {
+                (x - x_h) / (1.0 - x_h)
+            };
+            dx.max(y.abs())
+        }
+        RoofShape::SideHalfHipped => {
+            let x_hh = 1.0 - (1.0 - P) * RY / RX;
+            let dx = if x <= x_hh { 0.0 } else { (x - x_hh) * RX / RY };
+            dx.max(y.abs())
+        }
+        // 8 m across: two teeth, each rising over 0.9 of its width.
+        RoofShape::Sawtooth => {
+            let t = if y < 0.0 { y + 1.0 } else { y };
+            if t <= 0.9 {
+                1.0 - t / 0.9
+            } else {
+                (t - 0.9) / 0.1
+            }
+        }
+        RoofShape::Crosspitched => x.abs().min(y.abs()),
+        RoofShape::Round => along(&half_circle(), y.abs()),
+        RoofShape::Dome => along(&half_circle(), polygon_radius(x, y)),
+        RoofShape::Onion => along(
+            &[
+                (0.0, 0.0),
+                (0.08, 0.06),
+                (0.2, 0.16),
+                (0.4, 0.3),
+                (0.6, 0.42),
+                (0.8, 0.56),
+                (0.93, 0.72),
+                (1.0, 1.0),
+            ],
+            polygon_radius(x, y),
+        ),
+        RoofShape::Cone => polygon_radius(x, y).min(1.0),
+        RoofShape::Frustum => ((x.abs().max(y.abs()) - 0.5) / 0.5).max(0.0),
         RoofShape::Flat => 0.0,
         RoofShape::Gabled => y.abs(),
         RoofShape::Hipped => {
@@ -118,6 +209,24 @@ fn characteristic_points(shape: RoofShape) -> Vec<[f64; 2]> {
     let corners = vec![[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]];
     let extra: Vec<[f64; 2]> = match shape {
         RoofShape::Flat | RoofShape::Skillion => vec![],
+        RoofShape::Saltbox => vec![[-1.0, 0.5], [1.0, 0.5]],
+        RoofShape::DoubleSaltbox => vec![[-1.0, 0.0], [1.0, 0.0], [1.0, 0.3], [-1.0, -0.3]],
+        RoofShape::QuadrupleSaltbox => {
+            let x_m = x_h + 0.3 * (1.0 - x_h);
+            vec![[-x_h, 0.0], [x_h, 0.0], [x_m, 0.3], [-x_m, -0.3]]
+        }
+        RoofShape::SideHipped => vec![[-1.0, 0.0], [x_h, 0.0]],
+        RoofShape::SideHalfHipped => {
+            let x_hh = 1.0 - (1.0 - P) * RY / RX;
+            vec![[-1.0, 0.0], [x_hh, 0.0], [1.0, 1.0 - P], [1.0, P - 1.0]]
+        }
+        RoofShape::Sawtooth => vec![[-1.0, -0.1], [1.0, -0.1], [-1.0, 0.0], [1.0, 0.9]],
+        RoofShape::Crosspitched => vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [-1.0, 0.0]],
+        RoofShape::Round => vec![[-1.0, 0.0], [1.0, 0.0]],
+        RoofShape::Dome | RoofShape::Onion | RoofShape::Cone => {
+            vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]]
+        }
+        RoofShape::Frustum => vec![[0.5, 0.5], [-0.5, 0.5], [-0.5, -0.5], [0.5, -0.5]],
         RoofShape::Gabled => vec![[-1.0, 0.0], [1.0, 0.0]],
         RoofShape::Hipped => vec![[-x_h, 0.0], [x_h, 0.0]],
         RoofShape::Pyramidal => vec![[0.0, 0.0]],
@@ -235,7 +344,19 @@ fn every_roof_vertex_has_the_dlf_height(
         RoofShape::Skillion,
         RoofShape::HalfHipped,
         RoofShape::Gambrel,
-        RoofShape::Mansard
+        RoofShape::Mansard,
+        RoofShape::Saltbox,
+        RoofShape::DoubleSaltbox,
+        RoofShape::QuadrupleSaltbox,
+        RoofShape::SideHipped,
+        RoofShape::SideHalfHipped,
+        RoofShape::Sawtooth,
+        RoofShape::Crosspitched,
+        RoofShape::Round,
+        RoofShape::Dome,
+        RoofShape::Onion,
+        RoofShape::Cone,
+        RoofShape::Frustum
     )]
     shape: RoofShape,
     #[values(0.0, 30.0, -117.0)] angle: f64,
@@ -245,8 +366,24 @@ fn every_roof_vertex_has_the_dlf_height(
     let roof = roof_vertices(&scene.mesh);
     assert!(!roof.is_empty());
     let roof_height = if shape == RoofShape::Flat { 0.0 } else { ROOF };
+    // Shapes with one distinct side (a saltbox's short slope, a side-hipped end, the sawtooth's
+    // steep faces) may stand either way round without a roof:direction that says which: the
+    // whole roof may be turned by 180 degrees, the same for every vertex.
+    let turned = |[x, y]: [f64; 2]| [-x, -y];
+    let fits = |flip: bool| {
+        roof.iter().all(|p| {
+            let a = rect.alt([p[0], p[1]]);
+            let a = if flip { turned(a) } else { a };
+            (p[2] - (TOP - roof_height * expected_dlf(shape, a))).abs() < 1e-6
+        })
+    };
+    let flip = !fits(false) && fits(true);
+    let rect_alt = |p: [f64; 2]| {
+        let a = rect.alt(p);
+        if flip { turned(a) } else { a }
+    };
     for p in &roof {
-        let a = rect.alt([p[0], p[1]]);
+        let a = rect_alt([p[0], p[1]]);
         let expected = TOP - roof_height * expected_dlf(shape, a);
         assert!(
             (p[2] - expected).abs() < 1e-6,
@@ -257,7 +394,7 @@ fn every_roof_vertex_has_the_dlf_height(
     for q in characteristic_points(shape) {
         assert!(
             roof.iter().any(|p| {
-                let a = rect.alt([p[0], p[1]]);
+                let a = rect_alt([p[0], p[1]]);
                 (a[0] - q[0]).abs() < 1e-6 && (a[1] - q[1]).abs() < 1e-6
             }),
             "{shape:?} at {angle} deg lacks a vertex at {q:?}"

@@ -24,6 +24,11 @@ pub const MIN_WALL_HEIGHT: f64 = 0.5;
 /// Roof pitch in degrees when nothing says how high a pitched roof is.
 pub const DEFAULT_PITCH_DEGREES: f64 = 30.0;
 
+/// A default roof (from [`DEFAULT_PITCH_DEGREES`], no roof tag) is at most this share of the
+/// building's height when `height` is tagged, and at most its walls' height otherwise, so a wide
+/// footprint's default roof never dwarfs the body it stands on.
+pub const DEFAULT_ROOF_SHARE_OF_HEIGHT: f64 = 0.5;
+
 /// The half-hipped parameter HE: the share of the end walls that is hipped
 /// (docs/method.md section 6).
 pub const HALF_HIPPED_HE: f64 = 0.7;

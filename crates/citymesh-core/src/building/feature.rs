@@ -21,7 +21,7 @@ pub enum RoofOrigin {
     Tag,
     /// The roof classifier, with the probability of its answer.
     Classifier { probability: f32 },
-    /// No usable `roof:shape` (none, or one outside the eight): the default, flat.
+    /// No usable `roof:shape` (none, or one citymesh does not draw): the default, flat.
     Default,
 }
 
@@ -288,7 +288,7 @@ mod tests {
         let d = feature(&[("building", "yes")]);
         assert_eq!((d.roof_shape, d.roof_origin), ("flat", RoofOrigin::Default));
         assert_eq!((d.name, d.address, d.levels), (None, None, None));
-        let odd = feature(&[("building", "yes"), ("roof:shape", "onion")]);
+        let odd = feature(&[("building", "yes"), ("roof:shape", "zakomar")]);
         assert_eq!(odd.roof_origin, RoofOrigin::Default);
     }
 

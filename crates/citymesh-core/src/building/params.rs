@@ -4,8 +4,8 @@
 
 use super::defaults::{
     DEFAULT_FLAT_ROOF_COLOUR, DEFAULT_PITCH_DEGREES, DEFAULT_PITCHED_ROOF_COLOUR,
-    DEFAULT_WALL_COLOUR, LEVEL_HEIGHT, MIN_WALL_HEIGHT, default_levels, roof_colour_for_material,
-    wall_colour_for_material,
+    DEFAULT_ROOF_SHARE_OF_HEIGHT, DEFAULT_WALL_COLOUR, LEVEL_HEIGHT, MIN_WALL_HEIGHT,
+    default_levels, roof_colour_for_material, wall_colour_for_material,
 };
 use super::roof::RoofShape;
 use super::tags::{BuildingTags, ShapeTag};
@@ -14,11 +14,11 @@ use crate::mesh::Rgb;
 /// Where the roof shape came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum ShapeSource {
-    /// `roof:shape` names one of the eight shapes.
+    /// `roof:shape` names a shape citymesh draws.
     Tag,
     /// No `roof:shape`: the default (flat).
     Default,
-    /// `roof:shape` names a shape outside the eight: rendered flat.
+    /// `roof:shape` names no shape citymesh draws: rendered flat.
     Unsupported,
 }
 
@@ -91,6 +91,20 @@ impl BuildingParams {
             )
         };
 
+        // A default roof is capped by the body: half the tagged height, or the walls' height
+        // from levels (tagged or by building type).
+        if roof_height_source == RoofHeightSource::DefaultPitch {
+            let body = match tags.height.filter(|h| *h > min_height) {
+                Some(h) => (h - min_height) * DEFAULT_ROOF_SHARE_OF_HEIGHT,
+                None => {
+                    tags.levels
+                        .filter(|l| *l > 0.0)
+                        .unwrap_or_else(|| default_levels(&tags.building_type))
+                        * LEVEL_HEIGHT
+                }
+            };
+            roof_height = roof_height.min(body);
+        }
         let (height, height_source) = if let Some(h) = tags.height.filter(|h| *h > min_height) {
             (h, HeightSource::Tag)
         } else if let Some(l) = tags.levels.filter(|l| *l > 0.0) {
@@ -165,6 +179,54 @@ mod tests {
     }
 
     #[test]
+    fn a_default_roof_never_dwarfs_its_body() {
+        let pitch = 30f64.to_radians().tan();
+        // A 2-level hall 45 m across: the default pitch would give 26 m of roof on 6 m of walls;
+        // the walls' height caps it.
+        let hall = params(
+            &[
+                ("building", "industrial"),
+                ("building:levels", "2"),
+                ("roof:shape", "gabled"),
+            ],
+            45.0,
+        );
+        assert_eq!(hall.roof_height, 6.0);
+        assert_eq!(hall.height, 12.0);
+        // With a height, at most half of it.
+        let tall = params(
+            &[
+                ("building", "yes"),
+                ("height", "10"),
+                ("roof:shape", "hipped"),
+            ],
+            45.0,
+        );
+        assert_eq!(tall.roof_height, 5.0);
+        // A small house keeps its 30 degrees.
+        let house = params(
+            &[
+                ("building", "house"),
+                ("building:levels", "2"),
+                ("roof:shape", "gabled"),
+            ],
+            4.0,
+        );
+        assert!((house.roof_height - 4.0 * pitch).abs() < 1e-12);
+        // A tagged roof height is the mapper's word, never capped.
+        let tagged = params(
+            &[
+                ("building", "yes"),
+                ("building:levels", "1"),
+                ("roof:height", "8"),
+                ("roof:shape", "gabled"),
+            ],
+            45.0,
+        );
+        assert_eq!(tagged.roof_height, 8.0);
+    }
+
+    #[test]
     fn heights_follow_the_fallback_chain() {
         let p = params(
             &[
@@ -227,13 +289,18 @@ mod tests {
             5.0,
         );
         assert_eq!(p.roof_height, 4.0 - MIN_WALL_HEIGHT);
+        let p = params(&[("building", "yes"), ("roof:shape", "zakomar")], 5.0);
+        assert_eq!(
+            (p.shape, p.shape_source),
+            (RoofShape::Flat, ShapeSource::Unsupported)
+        );
         let p = params(
             &[("building", "yes"), ("roof:shape", "quadruple_saltbox")],
             5.0,
         );
         assert_eq!(
             (p.shape, p.shape_source),
-            (RoofShape::Flat, ShapeSource::Unsupported)
+            (RoofShape::QuadrupleSaltbox, ShapeSource::Tag)
         );
         let p = params(
             &[

@@ -5,7 +5,9 @@
 use super::length::planar_length;
 
 use super::axes::RoofAxes;
-use super::roof::{Alt, RoofModel, RoofShape, model};
+use super::roof::{
+    Alt, FRUSTUM_TOP, RoofModel, RoofShape, SALTBOX_RIDGE, SAWTOOTH_RISE, Sawtooth, model,
+};
 use super::tags::Orientation;
 
 /// A roof: `height(p) = top - roof_height * DLF(x'(p), y'(p))`.
@@ -67,12 +69,19 @@ impl RoofSurface {
     /// The distance in metres a slope of `angle_degrees` needs to rise by `h` over this roof: the
     /// horizontal run from eaves to top.
     pub fn run(&self) -> f64 {
+        let (rx, ry) = (self.axes.rx, self.axes.ry);
         match self.shape {
             RoofShape::Flat => 0.0,
             // A skillion rises over the whole length of its slope axis.
-            RoofShape::Skillion => 2.0 * self.axes.rx,
-            RoofShape::Pyramidal => self.axes.rx.min(self.axes.ry),
-            _ => self.axes.ry,
+            RoofShape::Skillion => 2.0 * rx,
+            RoofShape::Pyramidal | RoofShape::Crosspitched => rx.min(ry),
+            // Shapes of revolution rise from the inscribed ellipse's narrow side.
+            RoofShape::Dome | RoofShape::Onion | RoofShape::Cone => rx.min(ry),
+            RoofShape::Frustum => (1.0 - FRUSTUM_TOP) * rx.min(ry),
+            // The longer slope, from the far side to the ridge.
+            RoofShape::Saltbox => (1.0 + SALTBOX_RIDGE) * ry,
+            RoofShape::Sawtooth => SAWTOOTH_RISE * 2.0 * ry / Sawtooth::teeth(ry) as f64,
+            _ => ry,
         }
     }
 

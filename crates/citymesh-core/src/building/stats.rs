@@ -21,11 +21,11 @@ pub struct BuildingStats {
     pub skipped_ids: Vec<(String, &'static str)>,
     /// Generated roofs by shape (OSM `roof:shape` names).
     pub roof_shapes: BTreeMap<&'static str, usize>,
-    /// Roof shapes named by a `roof:shape` tag among the eight.
+    /// Roof shapes named by a `roof:shape` tag citymesh draws.
     pub shape_from_tag: usize,
     /// Roofs without `roof:shape`, given the default (flat).
     pub shape_default: usize,
-    /// `roof:shape` values outside the eight, rendered flat.
+    /// `roof:shape` values citymesh does not draw, rendered flat.
     pub shape_unsupported: usize,
     /// Total heights from `height`, from levels, and from the type default.
     pub height_from_tag: usize,

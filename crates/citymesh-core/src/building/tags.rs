@@ -11,7 +11,7 @@ use crate::osm::Tags;
 pub enum ShapeTag {
     Missing,
     Known(RoofShape),
-    /// A value outside the paper's eight shapes (rendered flat and counted).
+    /// A value naming no shape citymesh draws (rendered flat and counted).
     Unsupported(String),
 }
 

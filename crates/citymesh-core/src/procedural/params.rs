@@ -65,7 +65,7 @@ pub struct ProceduralParams {
     pub layouts: [f64; 5],
     /// Relative weight of each roof shape, in [`RoofShape::ALL`] order, where the layout does not
     /// force flat roofs (towers and industrial halls do).
-    pub roofs: [f64; 8],
+    pub roofs: [f64; RoofShape::COUNT],
     /// Where the area's centre is placed (degrees).
     pub lon: f64,
     pub lat: f64,
@@ -83,7 +83,11 @@ impl Default for ProceduralParams {
             height: 1000.0,
             complexity: 6,
             layouts: [3.0, 2.0, 2.0, 1.0, 1.0],
-            roofs: [3.0, 4.0, 3.0, 1.0, 1.0, 1.0, 1.0, 1.0],
+            // The paper's eight; the other shapes only when asked.
+            roofs: [
+                3.0, 4.0, 3.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+                0.0, 0.0, 0.0, 0.0,
+            ],
             lon: DEFAULT_LON,
             lat: DEFAULT_LAT,
         }

@@ -35,16 +35,13 @@ impl RoofClass {
 
     /// The class a roof shape is trained and evaluated as: pyramidal roofs are hipped roofs over a
     /// square (four facets meeting at a point) and count as hipped; the other shapes (skillion,
-    /// half-hipped, gambrel, mansard) are not one of the three and are left out.
+    /// half-hipped, gambrel, mansard, domes...) are not one of the three and are left out.
     pub fn of_shape(shape: RoofShape) -> Option<Self> {
         match shape {
             RoofShape::Flat => Some(RoofClass::Flat),
             RoofShape::Gabled => Some(RoofClass::Gabled),
             RoofShape::Hipped | RoofShape::Pyramidal => Some(RoofClass::Hipped),
-            RoofShape::Skillion
-            | RoofShape::HalfHipped
-            | RoofShape::Gambrel
-            | RoofShape::Mansard => None,
+            _ => None,
         }
     }
 

@@ -14,9 +14,17 @@ impl Gambrel {
             gp: gp.clamp(0.5, 1.0),
         }
     }
+
+    /// A break anywhere in [0.05, 1]: below 0.5 the upper part is the steeper, as on a double
+    /// saltbox.
+    pub fn with_break(p: f64) -> Self {
+        Self {
+            gp: p.clamp(0.05, 1.0),
+        }
+    }
 }
 
-/// The gambrel profile g(t) for break point `p` in [0.5, 1].
+/// The gambrel profile g(t) for break point `p` in (0, 1].
 pub fn gambrel_profile(p: f64, t: f64) -> f64 {
     if t <= p {
         (1.0 - p) / p * t
@@ -46,6 +54,9 @@ mod tests {
     fn is_a_valid_model() {
         for gp in [0.5, 0.7, 0.9] {
             super::super::tests::check_model(&super::Gambrel::new(gp));
+        }
+        for p in [0.05, 0.3] {
+            super::super::tests::check_model(&super::Gambrel::with_break(p));
         }
     }
 }

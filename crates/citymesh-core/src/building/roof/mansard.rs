@@ -13,7 +13,13 @@ pub struct Mansard {
 impl Mansard {
     /// MP is clamped to [0.5, 1].
     pub fn new(ra: f64, rb: f64, mp: f64) -> Self {
-        let mp = mp.clamp(0.5, 1.0);
+        Self::with_break(ra, rb, mp.clamp(0.5, 1.0))
+    }
+
+    /// A break anywhere in [0.05, 1]: below 0.5 the upper part is the steeper, as on a
+    /// quadruple saltbox.
+    pub fn with_break(ra: f64, rb: f64, mp: f64) -> Self {
+        let mp = mp.clamp(0.05, 1.0);
         let x_h = (1.0 - rb / ra).clamp(0.0, 1.0 - 1e-9);
         Self {
             x_h,
@@ -58,5 +64,8 @@ mod tests {
         }
         super::super::tests::check_model(&super::Mansard::new(4.0, 4.0, 0.7));
         super::super::tests::check_model(&super::Mansard::new(4.0, 10.0, 0.7));
+        for mp in [0.05, 0.3] {
+            super::super::tests::check_model(&super::Mansard::with_break(10.0, 4.0, mp));
+        }
     }
 }

@@ -1,34 +1,55 @@
-//! Roof shapes: the paper's eight, each as descending level functions (DLF) over the virtual
-//! rectangle and the convex virtual faces on which the DLF is affine (docs/method.md section 6,
-//! paper Appendix A).
+//! Roof shapes: the paper's eight and the rest of OpenStreetMap's Simple 3D Buildings table, each
+//! as descending level functions (DLF) over the virtual rectangle and the convex virtual faces on
+//! which the DLF is affine (docs/method.md section 6, paper Appendix A). Curved shapes (round,
+//! dome, onion, cone) are sampled: their DLF is piecewise affine between sampled rings.
 //!
 //! Coordinates here are the alternative coordinates of the virtual rectangle, already turned for
 //! `roof:orientation`: `a` runs along the ridge and `b` across it, both in [-1, 1]; `ra` and `rb`
 //! are the rectangle's half-lengths along `a` and `b` in metres. The roof height of a point is
 //! `h_top - h_roof * dlf(a, b)`.
 
+mod crosspitched;
 mod flat;
+mod frustum;
 mod gabled;
 mod gambrel;
 mod half_hipped;
 mod hipped;
 mod mansard;
 mod pyramidal;
+mod revolved;
+mod round;
+mod saltbox;
+mod sawtooth;
+mod side_half_hipped;
+mod side_hipped;
 mod skillion;
 
+pub use crosspitched::Crosspitched;
 pub use flat::Flat;
+pub use frustum::{FRUSTUM_TOP, Frustum};
 pub use gabled::Gabled;
 pub use gambrel::{Gambrel, gambrel_profile};
 pub use half_hipped::HalfHipped;
 pub use hipped::Hipped;
 pub use mansard::Mansard;
 pub use pyramidal::Pyramidal;
+pub use revolved::{Revolved, cone_profile, dome_profile, onion_profile};
+pub use round::Round;
+pub use saltbox::{SALTBOX_RIDGE, Saltbox};
+pub use sawtooth::{SAWTOOTH_RISE, Sawtooth};
+pub use side_half_hipped::SideHalfHipped;
+pub use side_hipped::SideHipped;
 pub use skillion::Skillion;
+
+/// Where the profile of double and quadruple saltbox roofs bends (as GP and MP do for gambrel
+/// and mansard): steep above, shallow below.
+pub const SALTBOX_KINK: f64 = 0.3;
 
 /// A point in alternative coordinates `[a, b]`.
 pub type Alt = [f64; 2];
 
-/// The eight roof shapes of the paper.
+/// The roof shapes: the paper's eight first, then the rest of Simple 3D Buildings'.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum RoofShape {
     Flat,
@@ -39,10 +60,25 @@ pub enum RoofShape {
     HalfHipped,
     Gambrel,
     Mansard,
+    Saltbox,
+    DoubleSaltbox,
+    QuadrupleSaltbox,
+    SideHipped,
+    SideHalfHipped,
+    Sawtooth,
+    Crosspitched,
+    Round,
+    Dome,
+    Onion,
+    Cone,
+    Frustum,
 }
 
 impl RoofShape {
-    pub const ALL: [RoofShape; 8] = [
+    /// How many shapes there are.
+    pub const COUNT: usize = 20;
+
+    pub const ALL: [RoofShape; Self::COUNT] = [
         RoofShape::Flat,
         RoofShape::Gabled,
         RoofShape::Hipped,
@@ -51,12 +87,26 @@ impl RoofShape {
         RoofShape::HalfHipped,
         RoofShape::Gambrel,
         RoofShape::Mansard,
+        RoofShape::Saltbox,
+        RoofShape::DoubleSaltbox,
+        RoofShape::QuadrupleSaltbox,
+        RoofShape::SideHipped,
+        RoofShape::SideHalfHipped,
+        RoofShape::Sawtooth,
+        RoofShape::Crosspitched,
+        RoofShape::Round,
+        RoofShape::Dome,
+        RoofShape::Onion,
+        RoofShape::Cone,
+        RoofShape::Frustum,
     ];
 
-    /// The shape an OSM `roof:shape` value names, if it is one of the eight.
+    /// The shape an OSM `roof:shape` value names, if citymesh draws it. `many` and `complex`
+    /// say the roof is drawn by its `roof:part`/`building:part` pieces: the outline itself is
+    /// flat. `frustrum` is a common misspelling.
     pub fn from_tag(value: &str) -> Option<Self> {
         Some(match value.trim() {
-            "flat" => RoofShape::Flat,
+            "flat" | "many" | "complex" => RoofShape::Flat,
             "gabled" => RoofShape::Gabled,
             "hipped" => RoofShape::Hipped,
             "pyramidal" => RoofShape::Pyramidal,
@@ -64,6 +114,20 @@ impl RoofShape {
             "half-hipped" | "half_hipped" => RoofShape::HalfHipped,
             "gambrel" => RoofShape::Gambrel,
             "mansard" => RoofShape::Mansard,
+            "saltbox" => RoofShape::Saltbox,
+            "double_saltbox" | "double-saltbox" => RoofShape::DoubleSaltbox,
+            "quadruple_saltbox" | "quadruple-saltbox" => RoofShape::QuadrupleSaltbox,
+            "side_hipped" | "side-hipped" => RoofShape::SideHipped,
+            "side_half-hipped" | "side_half_hipped" | "side-half-hipped" => {
+                RoofShape::SideHalfHipped
+            }
+            "sawtooth" => RoofShape::Sawtooth,
+            "crosspitched" | "cross_pitched" | "cross-pitched" => RoofShape::Crosspitched,
+            "round" => RoofShape::Round,
+            "dome" => RoofShape::Dome,
+            "onion" => RoofShape::Onion,
+            "cone" => RoofShape::Cone,
+            "frustum" | "frustrum" => RoofShape::Frustum,
             _ => return None,
         })
     }
@@ -79,6 +143,18 @@ impl RoofShape {
             RoofShape::HalfHipped => "half-hipped",
             RoofShape::Gambrel => "gambrel",
             RoofShape::Mansard => "mansard",
+            RoofShape::Saltbox => "saltbox",
+            RoofShape::DoubleSaltbox => "double_saltbox",
+            RoofShape::QuadrupleSaltbox => "quadruple_saltbox",
+            RoofShape::SideHipped => "side_hipped",
+            RoofShape::SideHalfHipped => "side_half-hipped",
+            RoofShape::Sawtooth => "sawtooth",
+            RoofShape::Crosspitched => "crosspitched",
+            RoofShape::Round => "round",
+            RoofShape::Dome => "dome",
+            RoofShape::Onion => "onion",
+            RoofShape::Cone => "cone",
+            RoofShape::Frustum => "frustum",
         }
     }
 }
@@ -96,6 +172,20 @@ pub trait RoofModel {
 /// The full square [-1, 1]², counter-clockwise.
 pub(crate) fn square() -> Vec<Alt> {
     vec![[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]]
+}
+
+/// The polygon counter-clockwise (reversed if it was not).
+pub(crate) fn counter_clockwise(mut f: Vec<Alt>) -> Vec<Alt> {
+    let area: f64 = (0..f.len())
+        .map(|i| {
+            let (p, q) = (f[i], f[(i + 1) % f.len()]);
+            p[0] * q[1] - q[0] * p[1]
+        })
+        .sum();
+    if area < 0.0 {
+        f.reverse();
+    }
+    f
 }
 
 /// Drops repeated consecutive points (a face that degenerates at a limit parameter) and faces
@@ -123,7 +213,8 @@ pub(crate) fn tidy(faces: Vec<Vec<Alt>>) -> Vec<Vec<Alt>> {
 }
 
 /// The model of a shape. `ra`, `rb`: half-lengths along and across the ridge (metres);
-/// `parameter`: HE, GP or MP for half-hipped, gambrel and mansard (defaults used when `None`).
+/// `parameter`: HE, GP or MP for half-hipped (and side-half-hipped), gambrel and mansard (and
+/// their saltbox kin), or the ridge's place across a saltbox (defaults used when `None`).
 pub fn model(
     shape: RoofShape,
     ra: f64,
@@ -142,6 +233,28 @@ pub fn model(
         }
         RoofShape::Gambrel => Box::new(Gambrel::new(parameter.unwrap_or(GAMBREL_GP))),
         RoofShape::Mansard => Box::new(Mansard::new(ra, rb, parameter.unwrap_or(MANSARD_MP))),
+        RoofShape::Saltbox => Box::new(Saltbox::new(parameter.unwrap_or(SALTBOX_RIDGE))),
+        RoofShape::DoubleSaltbox => {
+            Box::new(Gambrel::with_break(parameter.unwrap_or(SALTBOX_KINK)))
+        }
+        RoofShape::QuadrupleSaltbox => Box::new(Mansard::with_break(
+            ra,
+            rb,
+            parameter.unwrap_or(SALTBOX_KINK),
+        )),
+        RoofShape::SideHipped => Box::new(SideHipped::new(ra, rb)),
+        RoofShape::SideHalfHipped => Box::new(SideHalfHipped::new(
+            ra,
+            rb,
+            parameter.unwrap_or(HALF_HIPPED_HE),
+        )),
+        RoofShape::Sawtooth => Box::new(Sawtooth::new(rb)),
+        RoofShape::Crosspitched => Box::new(Crosspitched),
+        RoofShape::Round => Box::new(Round),
+        RoofShape::Dome => Box::new(Revolved::new(dome_profile())),
+        RoofShape::Onion => Box::new(Revolved::new(onion_profile())),
+        RoofShape::Cone => Box::new(Revolved::new(cone_profile())),
+        RoofShape::Frustum => Box::new(Frustum),
     }
 }
 
