@@ -3,6 +3,7 @@
 
 use crate::cli::SceneArgs;
 use crate::dem::DemStore;
+use crate::routes::scene_stats::BuildingFigures;
 use crate::source::read_osm_file;
 use anyhow::Context;
 use citymesh_core::building::cluster::records_extent;
@@ -27,11 +28,12 @@ pub struct SceneReport {
 pub fn export_scene(args: &SceneArgs) -> anyhow::Result<SceneReport> {
     let started = Instant::now();
     let mut records = Vec::new();
-    let mut load_skipped = 0;
+    let (mut load_skips, mut repaired) = (Vec::new(), Vec::new());
     for path in &args.osm {
         let bytes = read_osm_file(path)?;
         let osm = read_buildings(&bytes).with_context(|| format!("reading {}", path.display()))?;
-        load_skipped += osm.skipped.len();
+        load_skips.extend(osm.skipped);
+        repaired.extend(osm.repaired);
         records.extend(osm.buildings);
     }
     let given = args
@@ -79,16 +81,32 @@ pub fn export_scene(args: &SceneArgs) -> anyhow::Result<SceneReport> {
         _ => dem.read_for(&terrain),
     };
     if !lookup.missing.is_empty() {
-        tracing::warn!(missing = ?lookup.missing, "SRTM files missing: the ground there is flat at 0 m");
+        eprintln!(
+            "warning: SRTM files missing in {}: {}; the ground there is flat at 0 m",
+            args.dem_dir.display(),
+            lookup.missing.join(", ")
+        );
     }
     let generating = Instant::now();
-    let output = request.generate(&lookup.model);
+    let mut output = request.generate(&lookup.model);
     let generation_ms = generating.elapsed().as_secs_f64() * 1000.0;
+    // What the files had but could not be built, and what was built with less, as the server
+    // reports them.
+    let used: std::collections::HashSet<_> = request
+        .groups
+        .iter()
+        .flat_map(|c| set.cluster_records(c))
+        .map(|r| r.id)
+        .collect();
+    output
+        .buildings
+        .note_reading(&load_skips, &repaired, &|id| used.contains(&id));
+    warn_about(&output.buildings);
     std::fs::write(&args.out, &output.glb.bytes)
         .with_context(|| format!("writing {}", args.out.display()))?;
     let report = SceneReport {
         buildings: output.buildings.generated,
-        skipped: output.buildings.total_skipped() + load_skipped,
+        skipped: output.buildings.total_skipped(),
         bytes: output.glb.bytes.len(),
         generation_ms,
     };
@@ -107,8 +125,9 @@ pub fn export_scene(args: &SceneArgs) -> anyhow::Result<SceneReport> {
                 "triangles": output.ground.triangles,
             },
             "missing_dem": lookup.missing,
-            "buildings": output.buildings,
-            "skipped_when_reading": load_skipped,
+            // The same figures as /scene/stats gives.
+            "buildings": BuildingFigures::of(&output.buildings, 0),
+            "skipped_when_reading": load_skips.len(),
             "flat_roof_percent": output.buildings.flat_roof_percent(),
         });
         std::fs::write(path, serde_json::to_vec_pretty(&stats)?)
@@ -118,6 +137,54 @@ pub fn export_scene(args: &SceneArgs) -> anyhow::Result<SceneReport> {
     // the mesh back at once, faster than freeing them piece by piece (a tenth of the run).
     std::mem::forget((set, lookup, output));
     Ok(report)
+}
+
+/// Says on the console what was not drawn as the data describes, with the first ids of each kind
+/// (the `--stats` file lists them all).
+fn warn_about(b: &citymesh_core::building::BuildingStats) {
+    let first = |ids: Vec<String>| {
+        let more = ids.len().saturating_sub(5);
+        let mut shown = ids.into_iter().take(5).collect::<Vec<_>>().join(", ");
+        if more > 0 {
+            shown.push_str(&format!(" and {more} more"));
+        }
+        shown
+    };
+    let lists = [
+        (
+            "skipped",
+            b.skipped_ids
+                .iter()
+                .map(|(id, why)| format!("{id} ({why})"))
+                .collect::<Vec<_>>(),
+        ),
+        (
+            "drawn with less than the data describes",
+            b.repaired_ids
+                .iter()
+                .map(|(id, what)| format!("{id} ({what})"))
+                .collect(),
+        ),
+        (
+            "with a roof:shape citymesh does not draw (drawn flat)",
+            b.unsupported_shape_ids
+                .iter()
+                .map(|(id, shape)| format!("{id} ({shape})"))
+                .collect(),
+        ),
+        (
+            "missing part of their outline",
+            b.area_lost_ids
+                .iter()
+                .map(|(id, m2)| format!("{id} ({m2} m²)"))
+                .collect(),
+        ),
+    ];
+    for (what, ids) in lists {
+        if !ids.is_empty() {
+            eprintln!("warning: {} buildings {what}: {}", ids.len(), first(ids));
+        }
+    }
 }
 
 /// How far around a given box the ground is read ahead, metres: buildings cut at the box's

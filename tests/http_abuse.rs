@@ -552,6 +552,40 @@ async fn load_time_skips_are_reported_by_id_and_missing_courtyards_repaired() {
         b["repaired_ids"],
         json!([{"id": "relation/1776559", "what": "missing_inner_ring"}])
     );
+    // `citymesh scene` on the same file and box reports the same, in its --stats file and,
+    // briefly, on the console.
+    let (glb, figures) = (db.path().join("cut.glb"), db.path().join("cut-stats.json"));
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_citymesh"))
+        .args(["scene", "--osm", file.to_str().unwrap(), "--dem-dir"])
+        .arg(dem_dir())
+        .args(["--bbox", "8.3877,49.0390,8.4039,49.0640", "-o"])
+        .arg(&glb)
+        .arg("--stats")
+        .arg(&figures)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let cli: Value = serde_json::from_slice(&std::fs::read(&figures).unwrap()).unwrap();
+    for key in [
+        "skipped",
+        "skipped_ids",
+        "repaired_ids",
+        "roof_shape_unsupported_ids",
+        "area_lost_ids",
+        "generated",
+    ] {
+        assert_eq!(cli["buildings"][key], b[key], "{key}");
+    }
+    let console = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        console.contains("way/35538135 (missing_nodes)")
+            && console.contains("relation/1776559 (missing_inner_ring)"),
+        "{console}"
+    );
     // A box elsewhere does not report them.
     let far = get(&app, "/scene/stats?bbox=8.40,49.00,8.41,49.01")
         .await

@@ -118,25 +118,19 @@ async fn generate_within(
                 retry_after_secs: 1,
             });
         };
-        // What the data had but could not be built, and what was built with less.
-        for skip in &buildings.load_skips {
-            output.buildings.skip(skip.id, skip.reason.name());
-        }
-        if !buildings.repaired.is_empty() {
-            // Repairs of the records this scene used (drawn, or drawn through their parts).
-            let used: std::collections::HashSet<_> = request
-                .groups
-                .iter()
-                .flat_map(|c| buildings.set.cluster_records(c))
-                .map(|r| r.id)
-                .collect();
-            output.buildings.repaired_ids = buildings
-                .repaired
-                .iter()
-                .filter(|r| used.contains(&r.id))
-                .map(|r| (r.id.to_string(), r.what))
-                .collect();
-        }
+        // What the data had but could not be built, and what was built with less: repairs of
+        // the records this scene used (drawn, or drawn through their parts).
+        let used: std::collections::HashSet<_> = request
+            .groups
+            .iter()
+            .flat_map(|c| buildings.set.cluster_records(c))
+            .map(|r| r.id)
+            .collect();
+        output
+            .buildings
+            .note_reading(&buildings.load_skips, &buildings.repaired, &|id| {
+                used.contains(&id)
+            });
         let stats = GenerationStats {
             generation_ms: started.elapsed().as_secs_f64() * 1e3,
             vertices: output.glb.vertices,

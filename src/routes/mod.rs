@@ -20,7 +20,7 @@ mod procedural;
 mod request_body;
 mod roofs;
 mod scene;
-mod scene_stats;
+pub mod scene_stats;
 mod scene_upload;
 mod schemas;
 mod tiles;

@@ -8,7 +8,7 @@ use crate::state::AppState;
 use axum::Json;
 use axum::extract::rejection::QueryRejection;
 use axum::extract::{Query, State};
-use citymesh_core::building::HeightBase;
+use citymesh_core::building::{BuildingStats, HeightBase};
 use citymesh_core::mesh::Encoding;
 use citymesh_core::scene::SceneArea;
 use serde::Serialize;
@@ -71,6 +71,11 @@ pub struct BuildingFigures {
     /// Buildings generated with less than the data describes, e.g. `missing_inner_ring` (a
     /// courtyard missing from the data: the outline is drawn without it).
     pub repaired_ids: Vec<RepairedBuilding>,
+    /// Buildings whose `roof:shape` names no shape citymesh draws (drawn flat), with the value.
+    pub roof_shape_unsupported_ids: Vec<UnsupportedShape>,
+    /// Buildings whose drawn floor covers less of their outline than it should, by more than
+    /// 1 m², with the square metres missing (floor, walls and roof over them).
+    pub area_lost_ids: Vec<AreaLost>,
     /// Generated roofs per shape.
     pub roof_shapes: BTreeMap<String, usize>,
     /// Roof shapes from a `roof:shape` tag, from the classifier, by default (no tag: flat), and
@@ -89,6 +94,20 @@ pub struct BuildingFigures {
     pub outlines_covered_by_parts: usize,
     /// Walls between touching buildings, removed as hidden.
     pub shared_walls: usize,
+}
+
+#[derive(Debug, Serialize, ToSchema)]
+pub struct UnsupportedShape {
+    pub id: String,
+    /// The `roof:shape` value.
+    pub shape: String,
+}
+
+#[derive(Debug, Serialize, ToSchema)]
+pub struct AreaLost {
+    pub id: String,
+    /// Square metres of the outline not drawn.
+    pub m2: f64,
 }
 
 #[derive(Debug, Serialize, ToSchema)]
@@ -188,6 +207,69 @@ impl PaperFigures {
     }
 }
 
+impl BuildingFigures {
+    /// The figures of a scene's buildings, `chosen_roofs` of whose roofs the classifier chose
+    /// (the core counts them as tagged). `citymesh scene --stats` writes the same.
+    pub fn of(b: &BuildingStats, chosen_roofs: usize) -> Self {
+        BuildingFigures {
+            generated: b.generated,
+            parts: b.parts,
+            skipped: b
+                .skipped
+                .iter()
+                .map(|(k, v)| ((*k).to_owned(), *v))
+                .collect(),
+            skipped_ids: b
+                .skipped_ids
+                .iter()
+                .map(|(id, reason)| SkippedBuilding {
+                    id: id.clone(),
+                    reason: (*reason).to_owned(),
+                })
+                .collect(),
+            repaired_ids: b
+                .repaired_ids
+                .iter()
+                .map(|(id, what)| RepairedBuilding {
+                    id: id.clone(),
+                    what: (*what).to_owned(),
+                })
+                .collect(),
+            roof_shape_unsupported_ids: b
+                .unsupported_shape_ids
+                .iter()
+                .map(|(id, shape)| UnsupportedShape {
+                    id: id.clone(),
+                    shape: shape.clone(),
+                })
+                .collect(),
+            area_lost_ids: b
+                .area_lost_ids
+                .iter()
+                .map(|(id, m2)| AreaLost {
+                    id: id.clone(),
+                    m2: *m2,
+                })
+                .collect(),
+            roof_shapes: b
+                .roof_shapes
+                .iter()
+                .map(|(k, v)| ((*k).to_owned(), *v))
+                .collect(),
+            roof_shape_from_tag: b.shape_from_tag.saturating_sub(chosen_roofs),
+            roof_shape_from_classifier: chosen_roofs,
+            roof_shape_default: b.shape_default,
+            roof_shape_unsupported: b.shape_unsupported,
+            height_from_tag: b.height_from_tag,
+            height_from_levels: b.height_from_levels,
+            height_default: b.height_default,
+            invalid_tag_values: b.invalid_tags,
+            outlines_covered_by_parts: b.outlines_covered_by_parts,
+            shared_walls: b.shared_walls,
+        }
+    }
+}
+
 impl SceneStats {
     /// The figures of a generated scene, and of its classified roofs.
     pub fn of(generated: &Generated, classified: Option<RoofFigures>) -> Self {
@@ -203,46 +285,7 @@ impl SceneStats {
             classified_roofs: classified,
             without_classifier: None,
             imagery_attribution: None,
-            buildings: BuildingFigures {
-                generated: b.generated,
-                parts: b.parts,
-                skipped: b
-                    .skipped
-                    .iter()
-                    .map(|(k, v)| ((*k).to_owned(), *v))
-                    .collect(),
-                skipped_ids: b
-                    .skipped_ids
-                    .iter()
-                    .map(|(id, reason)| SkippedBuilding {
-                        id: id.clone(),
-                        reason: (*reason).to_owned(),
-                    })
-                    .collect(),
-                repaired_ids: b
-                    .repaired_ids
-                    .iter()
-                    .map(|(id, what)| RepairedBuilding {
-                        id: id.clone(),
-                        what: (*what).to_owned(),
-                    })
-                    .collect(),
-                roof_shapes: b
-                    .roof_shapes
-                    .iter()
-                    .map(|(k, v)| ((*k).to_owned(), *v))
-                    .collect(),
-                roof_shape_from_tag: b.shape_from_tag.saturating_sub(s.chosen_roofs),
-                roof_shape_from_classifier: s.chosen_roofs,
-                roof_shape_default: b.shape_default,
-                roof_shape_unsupported: b.shape_unsupported,
-                height_from_tag: b.height_from_tag,
-                height_from_levels: b.height_from_levels,
-                height_default: b.height_default,
-                invalid_tag_values: b.invalid_tags,
-                outlines_covered_by_parts: b.outlines_covered_by_parts,
-                shared_walls: b.shared_walls,
-            },
+            buildings: BuildingFigures::of(b, s.chosen_roofs),
             ground: GroundFigures {
                 cells: s.ground.cells,
                 void_cells: s.ground.void_cells,

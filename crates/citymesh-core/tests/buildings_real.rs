@@ -93,6 +93,9 @@ fn every_building_is_generated_closed_and_outward(
         s.shape_from_tag + s.shape_default + s.shape_unsupported,
         s.generated
     );
+    // Every unsupported shape is listed with its record; no floor lost any of its outline.
+    assert_eq!(s.unsupported_shape_ids.len(), s.shape_unsupported);
+    assert_eq!(s.area_lost_ids, vec![], "{file}");
     for (i, range) in scene.cluster_triangles.iter().enumerate() {
         let r = check_closed(&scene.mesh, range.clone());
         assert!(

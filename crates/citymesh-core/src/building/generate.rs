@@ -5,6 +5,7 @@
 
 use super::axes::RoofAxes;
 use super::cluster::part_of;
+use super::coverage::uncovered_area;
 use super::feature::BuildingFeature;
 use super::footprint::{Footprint, FootprintError, FootprintRing, NodeKey};
 use super::group::{Volume, mesh_group};
@@ -12,7 +13,7 @@ use super::height_base::HeightBase;
 use super::params::BuildingParams;
 use super::roof::RoofShape;
 use super::roof_surface::RoofSurface;
-use super::stats::BuildingStats;
+use super::stats::{BuildingStats, MAX_AREA_LOSS_M2};
 use super::tags::BuildingTags;
 use crate::geo::{GeoBbox, LocalFrame};
 use crate::mesh::{Mesh, check_closed};
@@ -157,6 +158,11 @@ pub fn generate_cluster_until(
             }
             if k == 0 {
                 stats.count(p.record.is_part, &params);
+                if let Some(super::tags::ShapeTag::Unsupported(value)) = &p.tags.roof_shape {
+                    stats
+                        .unsupported_shape_ids
+                        .push((p.record.id.to_string(), value.clone()));
+                }
             }
             first_params.get_or_insert(params);
         }
@@ -203,6 +209,18 @@ pub fn generate_cluster_until(
     }
     stats.shared_walls += report.shared_edges;
     stats.dropped_constraints += report.dropped_constraints;
+    // Nothing dropped unreported: every building's floor covers its pieces.
+    for (feature, lost) in uncovered_area(
+        &volumes,
+        mesh,
+        triangles..mesh.triangles.len(),
+        MAX_AREA_LOSS_M2,
+    ) {
+        if let Some(f) = stats.features.get(feature as usize) {
+            let id = f.id.to_string();
+            stats.area_lost_ids.push((id, (lost * 10.0).round() / 10.0));
+        }
+    }
 }
 
 /// A record's footprint and heights as the generator builds it (from its first outer ring's

@@ -13,6 +13,7 @@
 pub mod axes;
 pub mod boundary;
 pub mod cluster;
+pub mod coverage;
 pub mod defaults;
 pub mod feature;
 pub mod footprint;

@@ -4,7 +4,7 @@
 use super::feature::BuildingFeature;
 use super::params::{BuildingParams, HeightSource, ShapeSource};
 use super::roof::RoofShape;
-use crate::osm::OsmId;
+use crate::osm::{OsmId, Repaired, Skipped};
 use serde::Serialize;
 use std::collections::BTreeMap;
 
@@ -42,13 +42,44 @@ pub struct BuildingStats {
     /// Generated records built with less than the data describes (e.g. `missing_inner_ring`),
     /// by OSM id.
     pub repaired_ids: Vec<(String, &'static str)>,
+    /// The records whose `roof:shape` names no shape citymesh draws, with that value (drawn
+    /// flat).
+    pub unsupported_shape_ids: Vec<(String, String)>,
+    /// Generated records whose drawn floor covers less of their outline (after parts and the
+    /// scene border are cut out) than it should, by more than [`MAX_AREA_LOSS_M2`], with the
+    /// square metres lost.
+    pub area_lost_ids: Vec<(String, f64)>,
     /// The generated records as clients see them, in generation order (a triangle's feature id
     /// is its index here).
     #[serde(skip)]
     pub features: Vec<BuildingFeature>,
 }
 
+/// A drawn floor may miss this much of its outline (m²) before the loss is reported: slivers
+/// below it are dropped on purpose.
+pub const MAX_AREA_LOSS_M2: f64 = 1.0;
+
 impl BuildingStats {
+    /// Notes what reading the data found about the records a scene used (`used`): those that
+    /// could not be read into a building at all are skipped, those read with less than the data
+    /// describes are repaired. The server and `citymesh scene` report the same.
+    pub fn note_reading(
+        &mut self,
+        skipped: &[Skipped],
+        repaired: &[Repaired],
+        used: &dyn Fn(OsmId) -> bool,
+    ) {
+        for s in skipped {
+            self.skip(s.id, s.reason.name());
+        }
+        self.repaired_ids.extend(
+            repaired
+                .iter()
+                .filter(|r| used(r.id))
+                .map(|r| (r.id.to_string(), r.what)),
+        );
+    }
+
     pub fn skip(&mut self, id: OsmId, reason: &'static str) {
         *self.skipped.entry(reason).or_default() += 1;
         self.skipped_ids.push((id.to_string(), reason));
@@ -92,6 +123,8 @@ impl BuildingStats {
             shared_walls,
             dropped_constraints,
             repaired_ids,
+            unsupported_shape_ids,
+            area_lost_ids,
             features,
         } = other;
         self.generated += generated;
@@ -114,6 +147,8 @@ impl BuildingStats {
         self.shared_walls += shared_walls;
         self.dropped_constraints += dropped_constraints;
         self.repaired_ids.extend(repaired_ids);
+        self.unsupported_shape_ids.extend(unsupported_shape_ids);
+        self.area_lost_ids.extend(area_lost_ids);
         self.features.extend(features);
     }
 

@@ -1,0 +1,115 @@
+//! Nothing dropped unreported: after a group is meshed, each building's drawn floor must cover
+//! the pieces of outline it was given (its outline, less its parts and what the scene border
+//! cuts off). A floor that covers less means part of the building (floor, walls and roof over it)
+//! went missing in the meshing; the loss is reported with the building's id.
+
+use super::group::Volume;
+use crate::mesh::{Material, Mesh};
+use std::collections::BTreeMap;
+use std::ops::Range;
+
+/// For each building (feature row) of `volumes`, the area of its pieces not covered by its floor
+/// triangles among `triangles` of `mesh`, m², where that exceeds `tolerance`.
+pub fn uncovered_area(
+    volumes: &[Volume],
+    mesh: &Mesh,
+    triangles: Range<usize>,
+    tolerance: f64,
+) -> Vec<(u32, f64)> {
+    let mut wanted: BTreeMap<u32, f64> = BTreeMap::new();
+    for v in volumes {
+        *wanted.entry(v.feature).or_default() += v.footprint.area();
+    }
+    let mut drawn: BTreeMap<u32, f64> = BTreeMap::new();
+    for t in triangles {
+        let (Some(&tri), Some(style)) = (mesh.triangles.get(t), mesh.styles.get(t)) else {
+            continue;
+        };
+        if style.material != Material::Floor {
+            continue;
+        }
+        let [a, b, c] = mesh.corners(tri);
+        let area = ((b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])).abs() / 2.0;
+        *drawn.entry(style.feature).or_default() += area;
+    }
+    wanted
+        .into_iter()
+        .filter_map(|(feature, want)| {
+            let lost = want - drawn.get(&feature).copied().unwrap_or(0.0);
+            (lost > tolerance).then_some((feature, lost))
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::building::axes::RoofAxes;
+    use crate::building::footprint::{Footprint, FootprintRing};
+    use crate::building::group::mesh_group;
+    use crate::building::roof::RoofShape;
+    use crate::building::roof_surface::RoofSurface;
+    use crate::building::tags::Orientation;
+    use crate::mesh::Rgb;
+    use std::borrow::Cow;
+
+    #[test]
+    fn a_floor_with_a_missing_piece_is_reported_with_what_it_lost() {
+        // A 10 m x 6 m house and a 4 m x 3 m shed, meshed whole: nothing is lost.
+        let square = |x0: f64, y0: f64, w: f64, h: f64| {
+            Footprint::new(
+                FootprintRing::from_points(vec![
+                    [x0, y0],
+                    [x0 + w, y0],
+                    [x0 + w, y0 + h],
+                    [x0, y0 + h],
+                ]),
+                vec![],
+            )
+            .unwrap()
+        };
+        let (house, shed) = (square(0.0, 0.0, 10.0, 6.0), square(20.0, 0.0, 4.0, 3.0));
+        let roof = |f: &Footprint| {
+            let axes = RoofAxes::of_ring(&f.outer.points).unwrap().long_first();
+            RoofSurface::new(
+                RoofShape::Gabled,
+                axes,
+                Orientation::Along,
+                &f.outer.points,
+                None,
+                None,
+            )
+            .with_heights(8.0, 2.0)
+        };
+        let volume = |f: &Footprint, roof: usize, feature: u32| Volume {
+            footprint: Cow::Owned(f.clone()),
+            roof,
+            floor: 0.0,
+            wall_colour: Rgb(0, 0, 0),
+            roof_colour: Rgb(0, 0, 0),
+            feature,
+        };
+        let volumes = [volume(&house, 0, 0), volume(&shed, 1, 1)];
+        let mut mesh = Mesh::default();
+        mesh_group(&volumes, &[roof(&house), roof(&shed)], &mut mesh);
+        let all = 0..mesh.triangles.len();
+        assert_eq!(uncovered_area(&volumes, &mesh, all.clone(), 1.0), vec![]);
+
+        // Drop one floor triangle of the house: half its floor (30 m²) or less goes missing.
+        let floor = (0..mesh.triangles.len())
+            .find(|&t| mesh.styles[t].material == Material::Floor && mesh.styles[t].feature == 0)
+            .unwrap();
+        let [a, b, c] = mesh.corners(mesh.triangles[floor]);
+        let gone = ((b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])).abs() / 2.0;
+        mesh.styles[floor].material = Material::Wall;
+        let lost = uncovered_area(&volumes, &mesh, all.clone(), 1.0);
+        assert_eq!(lost.len(), 1);
+        assert_eq!(lost[0].0, 0);
+        assert!(
+            (lost[0].1 - gone).abs() < 1e-9 && gone > 1.0,
+            "{lost:?}, {gone}"
+        );
+        // Under the tolerance it is not reported.
+        assert_eq!(uncovered_area(&volumes, &mesh, all, gone + 0.1), vec![]);
+    }
+}
