@@ -174,15 +174,19 @@ pub(crate) fn square() -> Vec<Alt> {
     vec![[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]]
 }
 
-/// The polygon counter-clockwise (reversed if it was not).
-pub(crate) fn counter_clockwise(mut f: Vec<Alt>) -> Vec<Alt> {
-    let area: f64 = (0..f.len())
+/// Twice the signed area of a polygon (positive when counter-clockwise): the shoelace sum.
+pub(crate) fn twice_signed_area(f: &[Alt]) -> f64 {
+    (0..f.len())
         .map(|i| {
             let (p, q) = (f[i], f[(i + 1) % f.len()]);
             p[0] * q[1] - q[0] * p[1]
         })
-        .sum();
-    if area < 0.0 {
+        .sum()
+}
+
+/// The polygon counter-clockwise (reversed if it was not).
+pub(crate) fn counter_clockwise(mut f: Vec<Alt>) -> Vec<Alt> {
+    if twice_signed_area(&f) < 0.0 {
         f.reverse();
     }
     f
@@ -201,13 +205,7 @@ pub(crate) fn tidy(faces: Vec<Vec<Alt>>) -> Vec<Vec<Alt>> {
             {
                 f.pop();
             }
-            let area: f64 = (0..f.len())
-                .map(|i| {
-                    let (p, q) = (f[i], f[(i + 1) % f.len()]);
-                    p[0] * q[1] - q[0] * p[1]
-                })
-                .sum();
-            (f.len() >= 3 && area > 1e-12).then_some(f)
+            (f.len() >= 3 && twice_signed_area(&f) > 1e-12).then_some(f)
         })
         .collect()
 }
@@ -267,14 +265,7 @@ pub(crate) mod tests {
         let faces = m.faces();
         let total: f64 = faces
             .iter()
-            .map(|f| {
-                (0..f.len())
-                    .map(|i| {
-                        let (p, q) = (f[i], f[(i + 1) % f.len()]);
-                        (p[0] * q[1] - q[0] * p[1]) / 2.0
-                    })
-                    .sum::<f64>()
-            })
+            .map(|f| twice_signed_area(f) / 2.0)
             .inspect(|a| assert!(*a > 0.0, "a face is not counter-clockwise"))
             .sum();
         assert!(
