@@ -366,9 +366,10 @@ fn every_roof_vertex_has_the_dlf_height(
     let roof = roof_vertices(&scene.mesh);
     assert!(!roof.is_empty());
     let roof_height = if shape == RoofShape::Flat { 0.0 } else { ROOF };
-    // Shapes with one distinct side (a saltbox's short slope, a side-hipped end, the sawtooth's
-    // steep faces) may stand either way round without a roof:direction that says which: the
-    // whole roof may be turned by 180 degrees, the same for every vertex.
+    // roof:direction points to -y' (see `record`): the saltbox's and the sawtooth's long slopes
+    // face it, as written in `expected_dlf`. It is square to the axis that decides which end of
+    // a side-hipped roof is hipped, so that one may stand either way round: the whole roof
+    // turned by 180 degrees, the same for every vertex.
     let turned = |[x, y]: [f64; 2]| [-x, -y];
     let fits = |flip: bool| {
         roof.iter().all(|p| {
@@ -377,7 +378,8 @@ fn every_roof_vertex_has_the_dlf_height(
             (p[2] - (TOP - roof_height * expected_dlf(shape, a))).abs() < 1e-6
         })
     };
-    let flip = !fits(false) && fits(true);
+    let either_way = matches!(shape, RoofShape::SideHipped | RoofShape::SideHalfHipped);
+    let flip = either_way && !fits(false) && fits(true);
     let rect_alt = |p: [f64; 2]| {
         let a = rect.alt(p);
         if flip { turned(a) } else { a }

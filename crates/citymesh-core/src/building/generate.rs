@@ -178,12 +178,16 @@ pub fn generate_cluster_until(
     }
     let (positions, triangles) = (mesh.positions.len(), mesh.triangles.len());
     let mut report = mesh_group(&volumes, &roofs, mesh);
-    // A sloped roof over a courtyard can be cut so finely near its bends that the triangulation
-    // leaves a sliver (found by fuzzing). Such groups are checked; one that is not closed is
+    // A sloped roof over a courtyard, or one cut into many faces (sampled curves, sawtooth) over
+    // a sliver of a footprint, can be cut so finely that the triangulation leaves a sliver
+    // (found by fuzzing and property tests). Such groups are checked; one that is not closed is
     // built again with those roofs flat, and each flattened roof is reported.
     let risky: Vec<usize> = volumes
         .iter()
-        .filter(|v| !v.footprint.holes.is_empty() && !roofs[v.roof].is_planar())
+        .filter(|v| {
+            let roof = &roofs[v.roof];
+            !roof.is_planar() && (!v.footprint.holes.is_empty() || roof.shape.has_many_faces())
+        })
         .map(|v| v.roof)
         .collect();
     // Open edges or slivers are the fault; edges shared by four faces where buildings touch at

@@ -25,7 +25,8 @@ pub struct RoofSurface {
 impl RoofSurface {
     /// The roof over a footprint whose axes were found from its whole outline. `axes` must already
     /// put the longer side first ([`RoofAxes::long_first`]); `direction` is `roof:direction` in
-    /// degrees from north, used by skillions only; `parameter` is HE, GP or MP when known.
+    /// degrees from north: where a skillion descends, and which way the shapes with one distinct
+    /// side face ([`facing`]); `parameter` is HE, GP or MP when known.
     pub fn new(
         shape: RoofShape,
         axes: RoofAxes,
@@ -45,6 +46,10 @@ impl RoofSurface {
             }
             _ if orientation == Orientation::Across => swap(axes),
             _ => axes,
+        };
+        let axes = match direction {
+            Some(d) => facing(shape, axes, d),
+            None => axes,
         };
         Self {
             shape,
@@ -193,6 +198,31 @@ fn join_collinear(segments: &mut Vec<[Alt; 2]>) {
 }
 
 /// The same rectangle with the roles of x' and y' exchanged (`roof:orientation=across`).
+/// The axes turned so that a shape with one distinct side faces `roof:direction` (`degrees`
+/// from north), the rectangle unchanged: a saltbox's long slope and a sawtooth's long slopes
+/// descend towards it; a side-hipped or side-half-hipped roof has its hipped end there. Other
+/// shapes, and a direction square to the axis that decides, keep their axes.
+fn facing(shape: RoofShape, a: RoofAxes, degrees: f64) -> RoofAxes {
+    let r = degrees.to_radians();
+    let dir = [r.sin(), r.cos()];
+    let along = |v: [f64; 2]| v[0] * dir[0] + v[1] * dir[1];
+    match shape {
+        // Their long slopes descend towards -b.
+        RoofShape::Saltbox | RoofShape::Sawtooth if along(a.m) > 1e-9 => RoofAxes {
+            m: [-a.m[0], -a.m[1]],
+            y0: -a.y0,
+            ..a
+        },
+        // The hip is at +a.
+        RoofShape::SideHipped | RoofShape::SideHalfHipped if along(a.n) < -1e-9 => RoofAxes {
+            n: [-a.n[0], -a.n[1]],
+            x0: -a.x0,
+            ..a
+        },
+        _ => a,
+    }
+}
+
 fn swap(a: RoofAxes) -> RoofAxes {
     RoofAxes {
         n: a.m,
@@ -217,6 +247,56 @@ mod tests {
         let ring = vec![[0.0, 0.0], [20.0, 0.0], [20.0, 8.0], [0.0, 8.0]];
         let axes = RoofAxes::of_ring(&ring).unwrap().long_first();
         (ring, axes)
+    }
+
+    #[test]
+    fn one_sided_shapes_face_the_roof_direction() {
+        // 20 m along x (east), 8 m along y (north).
+        let (ring, axes) = rectangle();
+        let roof = |shape, direction: f64| {
+            RoofSurface::new(
+                shape,
+                axes,
+                Orientation::Along,
+                &ring,
+                Some(direction),
+                None,
+            )
+            .with_heights(10.0, 4.0)
+        };
+        for (direction, long_side, short_side) in [
+            (180.0, [10.0, 0.0], [10.0, 8.0]),
+            (0.0, [10.0, 8.0], [10.0, 0.0]),
+        ] {
+            // The saltbox's ridge stands a quarter of the width from the side away from
+            // `roof:direction`: 2 m from it, 6 m from the other.
+            let saltbox = roof(RoofShape::Saltbox, direction);
+            let ridge_y = if direction == 0.0 { 2.0 } else { 6.0 };
+            assert!(
+                (saltbox.height_at([10.0, ridge_y]) - 10.0).abs() < 1e-9,
+                "{direction}"
+            );
+            assert!((saltbox.height_at(long_side) - 6.0).abs() < 1e-9);
+            assert!((saltbox.height_at(short_side) - 6.0).abs() < 1e-9);
+            // A quarter of the way down the long slope is a quarter of the roof lower.
+            let quarter = [10.0, ridge_y + (long_side[1] - ridge_y) / 4.0];
+            assert!((saltbox.height_at(quarter) - 9.0).abs() < 1e-9);
+            // Each sawtooth's long slope descends towards `roof:direction`: two teeth 4 m wide,
+            // their tops 0.4 m from their steep faces.
+            let saw = roof(RoofShape::Sawtooth, direction);
+            let top_y = if direction == 0.0 { 0.4 } else { 3.6 };
+            assert!(
+                (saw.height_at([10.0, top_y]) - 10.0).abs() < 1e-9,
+                "{direction}"
+            );
+        }
+        // The hipped end is where `roof:direction` points: east here, a gable end in the west.
+        let side = roof(RoofShape::SideHipped, 90.0);
+        assert!((side.height_at([20.0, 4.0]) - 6.0).abs() < 1e-9);
+        assert!((side.height_at([0.0, 4.0]) - 10.0).abs() < 1e-9);
+        let side = roof(RoofShape::SideHipped, 270.0);
+        assert!((side.height_at([0.0, 4.0]) - 6.0).abs() < 1e-9);
+        assert!((side.height_at([20.0, 4.0]) - 10.0).abs() < 1e-9);
     }
 
     #[test]

@@ -132,6 +132,19 @@ impl RoofShape {
         })
     }
 
+    /// Whether the shape cuts a roof into many faces (sampled curves, rows of teeth), which a
+    /// thin footprint may not take without slivers.
+    pub fn has_many_faces(self) -> bool {
+        matches!(
+            self,
+            RoofShape::Round
+                | RoofShape::Dome
+                | RoofShape::Onion
+                | RoofShape::Cone
+                | RoofShape::Sawtooth
+        )
+    }
+
     /// The OSM tag value.
     pub fn tag(self) -> &'static str {
         match self {
