@@ -118,8 +118,13 @@ pub fn mesh_options(
 ) -> MeshOptions {
     MeshOptions {
         encoding: encoding_for(encoding, headers, default),
-        heights: heights.map_or(state.height_base, HeightBase::from),
+        heights: heights_for(state, heights),
     }
+}
+
+/// The ground heights count from: `?height_base=` if given, else the server's `--height-base`.
+pub fn heights_for(state: &AppState, asked: Option<HeightBaseParam>) -> HeightBase {
+    asked.map_or(state.height_base, HeightBase::from)
 }
 
 /// Where roof shapes come from, and how the GLB is encoded.

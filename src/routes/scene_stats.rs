@@ -1,6 +1,6 @@
 //! `GET /scene/stats?bbox=`: what went into the scene of an area, as JSON.
 
-use super::params::{BboxQuery, parse_bbox};
+use super::params::{BboxQuery, heights_for, parse_bbox};
 use super::roofs::generate_with_roofs;
 use crate::error::{AppError, ErrorBody};
 use crate::pipeline::{Generated, MeshOptions, RoofFigures, RoofsParam};
@@ -8,7 +8,7 @@ use crate::state::AppState;
 use axum::Json;
 use axum::extract::rejection::QueryRejection;
 use axum::extract::{Query, State};
-use citymesh_core::building::{BuildingStats, HeightBase};
+use citymesh_core::building::BuildingStats;
 use citymesh_core::mesh::Encoding;
 use citymesh_core::scene::SceneArea;
 use serde::Serialize;
@@ -157,9 +157,7 @@ pub async fn scene_stats(
     let roofs = query.roofs.unwrap_or_default();
     let mesh = MeshOptions {
         encoding: Encoding::Plain,
-        heights: query
-            .height_base
-            .map_or(state.height_base, HeightBase::from),
+        heights: heights_for(&state, query.height_base),
     };
     let (generated, figures) = generate_with_roofs(&state, area, roofs, mesh).await?;
     let mut stats = SceneStats::of(&generated, figures);

@@ -3,7 +3,7 @@
 //! covers it. This is how a user fixes a wrong roof shape in real data and rebuilds.
 
 use super::conditional::generated_response;
-use super::params::HeightBaseParam;
+use super::params::{HeightBaseParam, heights_for};
 use super::schemas::GlbBytes;
 use crate::error::{AppError, ErrorBody};
 use crate::pipeline::{Buildings, MeshOptions, generate, run_blocking};
@@ -13,7 +13,6 @@ use axum::extract::rejection::QueryRejection;
 use axum::extract::{Query, State};
 use axum::http::{HeaderMap, StatusCode, header};
 use axum::response::Response;
-use citymesh_core::building::HeightBase;
 use citymesh_core::building::set::BuildingSet;
 use citymesh_core::geo::GeoBbox;
 use citymesh_core::geojson::{GeoJsonErrorKind, read_geojson};
@@ -159,9 +158,7 @@ pub async fn post_scene(
         None,
         MeshOptions {
             encoding: Encoding::Plain,
-            heights: query
-                .height_base
-                .map_or(state.height_base, HeightBase::from),
+            heights: heights_for(&state, query.height_base),
         },
     )
     .await?;

@@ -261,7 +261,7 @@ pub fn model(
         )),
         RoofShape::Sawtooth => Box::new(Sawtooth::new(rb)),
         RoofShape::Crosspitched => Box::new(Crosspitched),
-        RoofShape::Round => Box::new(Round),
+        RoofShape::Round => Box::new(Round::new()),
         RoofShape::Dome => Box::new(Revolved::new(dome_profile())),
         RoofShape::Onion => Box::new(Revolved::new(onion_profile())),
         RoofShape::Cone => Box::new(Revolved::new(cone_profile())),

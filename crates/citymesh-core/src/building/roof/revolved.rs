@@ -47,6 +47,20 @@ pub fn cone_profile() -> Profile {
     vec![(0.0, 0.0), (1.0, 1.0)]
 }
 
+/// The profile's DLF at `t`: linear between its points, 1 from t = 1 on.
+pub fn along_profile(profile: &[(f64, f64)], t: f64) -> f64 {
+    if t >= 1.0 {
+        return 1.0;
+    }
+    for w in profile.windows(2) {
+        let ((t0, d0), (t1, d1)) = (w[0], w[1]);
+        if t <= t1 {
+            return d0 + (d1 - d0) * (t - t0) / (t1 - t0);
+        }
+    }
+    1.0
+}
+
 pub struct Revolved {
     profile: Profile,
 }
@@ -81,17 +95,7 @@ impl Revolved {
 
 impl RoofModel for Revolved {
     fn dlf(&self, p: Alt) -> f64 {
-        let rho = Self::rho(p);
-        if rho >= 1.0 {
-            return 1.0;
-        }
-        for w in self.profile.windows(2) {
-            let ((r0, d0), (r1, d1)) = (w[0], w[1]);
-            if rho <= r1 {
-                return d0 + (d1 - d0) * (rho - r0) / (r1 - r0);
-            }
-        }
-        1.0
+        along_profile(&self.profile, Self::rho(p))
     }
     fn faces(&self) -> Vec<Vec<Alt>> {
         let mut faces = Vec::new();
