@@ -98,6 +98,22 @@ pub async fn serve(
     let graceful = GracefulShutdown::new();
     tokio::pin!(shutdown);
     loop {
+        // Accept first, then pick the slot: a reserved slot is taken only when every general one
+        // is in use at the moment this client arrives (picking before accepting would hand a
+        // reserved slot, taken while the general ones were briefly full, to whoever came next).
+        // At most this one accepted client waits for a slot; the others wait in the backlog.
+        let stream = tokio::select! {
+            accepted = listener.accept() => match accepted {
+                Ok((stream, _)) => stream,
+                Err(e) => {
+                    // Out of file descriptors and the like: wait a moment rather than spin.
+                    tracing::warn!("accept failed: {e}");
+                    tokio::time::sleep(Duration::from_millis(50)).await;
+                    continue;
+                }
+            },
+            () = &mut shutdown => break,
+        };
         // A general slot if one is free, else a reserved one, else whichever frees first.
         let taken = match permits.clone().try_acquire_owned() {
             Ok(p) => Ok((p, false)),
@@ -112,18 +128,6 @@ pub async fn serve(
         };
         let Ok((permit, is_reserved)) = taken else {
             break;
-        };
-        let stream = tokio::select! {
-            accepted = listener.accept() => match accepted {
-                Ok((stream, _)) => stream,
-                Err(e) => {
-                    // Out of file descriptors and the like: wait a moment rather than spin.
-                    tracing::warn!("accept failed: {e}");
-                    tokio::time::sleep(Duration::from_millis(50)).await;
-                    continue;
-                }
-            },
-            () = &mut shutdown => break,
         };
         let _ = stream.set_nodelay(true);
         let io = TokioIo::new(IdleTimeout::new(
