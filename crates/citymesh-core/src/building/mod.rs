@@ -26,6 +26,7 @@ pub mod roof;
 pub mod roof_surface;
 pub mod set;
 pub mod stats;
+pub mod straight_skeleton;
 mod sweep;
 pub mod tags;
 pub mod triangulate;
