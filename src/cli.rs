@@ -338,6 +338,35 @@ pub struct SceneArgs {
     /// Buildings) or `highest` (the paper's rule).
     #[arg(long, value_enum, default_value_t = HeightBaseArg::Lowest)]
     pub height_base: HeightBaseArg,
+
+    /// How hipped, gabled and pyramidal roofs are laid over footprints: `auto` (the straight
+    /// skeleton for complex footprints, the virtual rectangle for near-rectangular ones),
+    /// `rectangle` (the paper's, everywhere) or `skeleton` (everywhere).
+    #[arg(long, value_enum, default_value_t = RoofMethodArg::Auto)]
+    pub roof_method: RoofMethodArg,
+}
+
+/// `--roof-method`: how pitched roofs are laid over footprints (docs/method.md section 6b).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum RoofMethodArg {
+    /// The straight skeleton for footprints with courtyards or filling less than 90 % of their
+    /// virtual rectangle; the virtual rectangle for the others.
+    #[default]
+    Auto,
+    /// The paper's virtual rectangle for every roof.
+    Rectangle,
+    /// The straight skeleton for every hipped, gabled and pyramidal roof.
+    Skeleton,
+}
+
+impl From<RoofMethodArg> for citymesh_core::building::RoofMethod {
+    fn from(m: RoofMethodArg) -> Self {
+        match m {
+            RoofMethodArg::Auto => Self::Auto,
+            RoofMethodArg::Rectangle => Self::Rectangle,
+            RoofMethodArg::Skeleton => Self::Skeleton,
+        }
+    }
 }
 
 /// `--height-base`: the ground a building's `height` is counted from (docs/method.md section 3).
@@ -623,6 +652,12 @@ pub struct ServeArgs {
     /// Buildings) or `highest` (the paper's rule); `?height_base=` overrides it for a scene.
     #[arg(long, env = "CITYMESH_HEIGHT_BASE", value_enum, default_value_t = HeightBaseArg::Lowest)]
     pub height_base: HeightBaseArg,
+
+    /// How hipped, gabled and pyramidal roofs are laid over footprints: `auto` (the straight
+    /// skeleton for complex footprints, the virtual rectangle for near-rectangular ones),
+    /// `rectangle` (the paper's, everywhere) or `skeleton` (everywhere).
+    #[arg(long, env = "CITYMESH_ROOF_METHOD", value_enum, default_value_t = RoofMethodArg::Auto)]
+    pub roof_method: RoofMethodArg,
 
     /// Largest bounding box /scene.glb accepts, in square kilometres.
     #[arg(long, env = "CITYMESH_MAX_BBOX_KM2", default_value_t = 25.0)]

@@ -73,6 +73,7 @@ pub fn export_scene(args: &SceneArgs) -> anyhow::Result<SceneReport> {
         .map_err(|e| anyhow::anyhow!("{e}"))?
         .with_encoding(args.encoding.into())
         .with_heights(args.height_base.into())
+        .with_roof_method(args.roof_method.into())
         // One scene and nothing else to do: every core may build groups.
         .with_workers(std::thread::available_parallelism().map_or(1, usize::from));
     let terrain = request.terrain_bbox();

@@ -72,6 +72,8 @@ pub struct ServerState {
     pub memory_budget: crate::cache::MemoryBudget,
     /// The ground a building's `height` is counted from (`--height-base`).
     pub height_base: citymesh_core::building::HeightBase,
+    /// How hipped, gabled and pyramidal roofs are laid over footprints (`--roof-method`).
+    pub roof_method: citymesh_core::building::RoofMethod,
 }
 
 impl ServerState {

@@ -601,3 +601,166 @@ async fn with_no_data_configured_the_server_shows_a_demo_city() {
     assert_eq!(t.header("x-citymesh-osm"), "files");
     assert!(t.header("x-citymesh-buildings").parse::<usize>().unwrap() > 0);
 }
+
+/// A named outline (metres, counter-clockwise) and the walls that close its wings.
+type WingedOutline = (&'static str, Vec<[f64; 2]>, Vec<usize>);
+
+/// An L, a T and a U, wings 6 m wide, each with the walls that close its wings (where a gabled
+/// roof has its gables).
+fn winged_outlines() -> [WingedOutline; 3] {
+    [
+        (
+            "L",
+            vec![
+                [0.0, 0.0],
+                [20.0, 0.0],
+                [20.0, 6.0],
+                [6.0, 6.0],
+                [6.0, 14.0],
+                [0.0, 14.0],
+            ],
+            vec![1, 4],
+        ),
+        (
+            "T",
+            vec![
+                [0.0, 10.0],
+                [6.0, 10.0],
+                [6.0, 0.0],
+                [12.0, 0.0],
+                [12.0, 10.0],
+                [18.0, 10.0],
+                [18.0, 16.0],
+                [0.0, 16.0],
+            ],
+            vec![2, 5, 7],
+        ),
+        (
+            "U",
+            vec![
+                [0.0, 0.0],
+                [20.0, 0.0],
+                [20.0, 15.0],
+                [14.0, 15.0],
+                [14.0, 6.0],
+                [6.0, 6.0],
+                [6.0, 15.0],
+                [0.0, 15.0],
+            ],
+            vec![2, 6],
+        ),
+    ]
+}
+
+/// The rise of a roof of one pitch over a rectilinear outline at `p`: its distance from the
+/// outline's walls measured square to them (the L-infinity distance, which a straight skeleton
+/// over right angles gives), walls listed in `skip` left out (gable ends).
+fn rectilinear_rise(ring: &[[f64; 2]], skip: &[usize], p: [f64; 2]) -> f64 {
+    (0..ring.len())
+        .filter(|i| !skip.contains(i))
+        .map(|i| {
+            let (a, b) = (ring[i], ring[(i + 1) % ring.len()]);
+            let dx = (a[0].min(b[0]) - p[0]).max(p[0] - a[0].max(b[0])).max(0.0);
+            let dy = (a[1].min(b[1]) - p[1]).max(p[1] - a[1].max(b[1])).max(0.0);
+            dx.max(dy)
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+#[tokio::test]
+async fn hipped_and_gabled_roofs_on_l_t_and_u_outlines_follow_their_wings() {
+    use citymesh_core::geo::LocalFrame;
+    let (app, _db) = app().await;
+    // Laid out in metres around (8.4 E, 49.01 N); hipped in the first row, gabled in the second.
+    let frame = LocalFrame::new(8.4, 49.01, 0.0);
+    let mut features = Vec::new();
+    let mut drawn: Vec<(String, Vec<[f64; 2]>, Vec<usize>)> = Vec::new();
+    for (k, (name, ring, ends)) in winged_outlines().into_iter().enumerate() {
+        for (row, shape) in ["hipped", "gabled"].into_iter().enumerate() {
+            let at = [k as f64 * 40.0, row as f64 * 30.0];
+            let ring: Vec<[f64; 2]> = ring.iter().map(|p| [p[0] + at[0], p[1] + at[1]]).collect();
+            let mut coordinates: Vec<[f64; 2]> = ring
+                .iter()
+                .map(|p| {
+                    let (lon, lat, _) = frame.to_geographic([p[0], p[1], 0.0]);
+                    [lon, lat]
+                })
+                .collect();
+            coordinates.push(coordinates[0]);
+            features.push(json!({"type": "Feature",
+                "properties": {"height": 9, "roof:shape": shape},
+                "geometry": {"type": "Polygon", "coordinates": [coordinates]}}));
+            let skip = if shape == "gabled" {
+                ends.clone()
+            } else {
+                Vec::new()
+            };
+            drawn.push((format!("{shape} {name}"), ring, skip));
+        }
+    }
+    let a = post(&app, "application/geo+json", collection(features)).await;
+    assert_eq!(
+        a.status,
+        StatusCode::OK,
+        "{}",
+        String::from_utf8_lossy(&a.body)
+    );
+    assert_valid_glb(&a.body);
+    assert_eq!(a.header("x-citymesh-buildings"), "6");
+    let (json, _) = common::decode::chunks(&a.body);
+    let origin = &json["scenes"][0]["extras"]["origin"];
+    let served = LocalFrame::new(
+        origin["lon"].as_f64().unwrap(),
+        origin["lat"].as_f64().unwrap(),
+        0.0,
+    );
+    // No roof:height: the default pitch (30 degrees) over the roof's own run, half a wing's
+    // width (3 m), under the cap of half the tagged height (4.5 m).
+    let roof_height = 3.0 * 30f64.to_radians().tan();
+    assert!(roof_height < 4.5);
+    let triangles = common::decode::triangles(&a.body);
+    for (i, (name, ring, skip)) in drawn.iter().enumerate() {
+        let corners: Vec<[f64; 3]> = triangles
+            .iter()
+            .filter(|t| t.material == "roof" && t.feature == Some(i as u32))
+            .flat_map(|t| t.corners)
+            .collect();
+        assert!(corners.len() >= 3, "{name}: no roof");
+        let (mut top, mut eaves) = (f64::MIN, f64::MAX);
+        for c in &corners {
+            // Where the corner stands in the layout's metres.
+            let (lon, lat, _) = served.to_geographic([c[0], -c[2], 0.0]);
+            let p = frame.to_local(lon, lat, 0.0);
+            let rise = rectilinear_rise(ring, skip, [p[0], p[1]]);
+            let want = 9.0 - roof_height * (1.0 - rise / 3.0);
+            assert!(
+                (c[1] - want).abs() < 2e-3,
+                "{name}: roof point ({:.3}, {:.3}) at {:.4} m, the skeleton gives {want:.4} m",
+                p[0],
+                p[1],
+                c[1]
+            );
+            top = top.max(c[1]);
+            eaves = eaves.min(c[1]);
+        }
+        assert!((top - 9.0).abs() < 1e-3, "{name}: top {top}");
+        assert!(
+            (top - eaves - roof_height).abs() < 2e-3,
+            "{name}: roof {}",
+            top - eaves
+        );
+        // A gabled roof's ridge runs to the middle of each wall that closes a wing.
+        for &e in skip {
+            let (a, b) = (ring[e], ring[(e + 1) % ring.len()]);
+            let mid = [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0];
+            let on_ridge = corners.iter().any(|c| {
+                let (lon, lat, _) = served.to_geographic([c[0], -c[2], 0.0]);
+                let p = frame.to_local(lon, lat, 0.0);
+                (p[0] - mid[0]).abs() < 2e-3
+                    && (p[1] - mid[1]).abs() < 2e-3
+                    && (c[1] - 9.0).abs() < 2e-3
+            });
+            assert!(on_ridge, "{name}: no ridge end over the middle of wall {e}");
+        }
+    }
+}

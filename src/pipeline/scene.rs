@@ -92,6 +92,7 @@ async fn generate_within(
     };
     let slot = generation_slot(state).await?;
     let dem = state.dem.clone();
+    let roof_method = state.roof_method;
     // Set when this request is dropped (the client left, or the timeout fired): the blocking
     // work then stops before its next group of buildings and frees its slot.
     let gone = Arc::new(AtomicBool::new(false));
@@ -104,7 +105,8 @@ async fn generate_within(
             .request(&buildings.set)
             .map_err(|e| AppError::bad_request("invalid_tile", e.to_string()))?
             .with_encoding(mesh.encoding)
-            .with_heights(mesh.heights);
+            .with_heights(mesh.heights)
+            .with_roof_method(roof_method);
         if let Some(roofs) = &roofs {
             request = request.with_roofs(roofs);
         }

@@ -33,7 +33,10 @@ pub async fn tile_regions(state: &AppState, root: GeoBbox) -> Result<Arc<TileReg
             within_timeout(state, async {
                 let buildings = state.source.buildings(&root).await?;
                 let dem = state.dem.clone();
-                let heights = state.height_base;
+                let rules = citymesh_core::building::BuildingRules {
+                    heights: state.height_base,
+                    roof_method: state.roof_method,
+                };
                 run_blocking(state, move || {
                     let variants = if classified {
                         roof_variants(&buildings.set)
@@ -46,7 +49,7 @@ pub async fn tile_regions(state: &AppState, root: GeoBbox) -> Result<Arc<TileReg
                         &buildings.set,
                         &|b| dem.lookup(b).model,
                         &variants,
-                        heights,
+                        rules,
                         &|| false,
                     )
                     .ok_or_else(|| AppError::internal("measuring the tiles stopped"))?;

@@ -136,12 +136,14 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         }
     };
     let height_base = citymesh_core::building::HeightBase::from(args.height_base);
+    let roof_method = citymesh_core::building::RoofMethod::from(args.roof_method);
     let data_version = format!(
-        "{}-{}-{}-{}",
+        "{}-{}-{}-{}-{}",
         env!("CARGO_PKG_VERSION"),
         dem.fingerprint(),
         source.fingerprint(),
-        height_base.name()
+        height_base.name(),
+        roof_method.name()
     );
     let store =
         TileStore::bounded(pool.clone(), args.tile_store_mb.saturating_mul(1 << 20)).await?;
@@ -212,6 +214,7 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         cors_origins: Arc::new(args.cors_origin.clone()),
         memory_budget: memory,
         height_base,
+        roof_method,
         dem: Arc::new(dem),
         source,
         tiles,

@@ -4,11 +4,14 @@
 //! of houses sharing walls stay closed as one surface with their hidden walls removed.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
+use citymesh_core::building::RoofMethod;
+use citymesh_core::building::footprint::{Footprint, FootprintRing};
 use citymesh_core::building::roof::RoofShape;
+use citymesh_core::building::skeleton_roof::SkeletonRoof;
 use citymesh_core::geo::{GeoBbox, LocalFrame};
 use citymesh_core::mesh::check_closed;
 use citymesh_core::osm::{BuildingRecord, OsmId, Ring, RingNode, Tags};
-use citymesh_core::scene::{Border, Scene};
+use citymesh_core::scene::{Border, Scene, SceneRules};
 use citymesh_core::terrain::ElevationModel;
 use proptest::prelude::*;
 
@@ -210,6 +213,45 @@ proptest! {
             // Only footprints without area or crossing themselves are refused.
             prop_assert_eq!(scene.buildings.total_skipped(), 1);
             prop_assert!(range.is_empty());
+        }
+    }
+
+    /// Hipped, gabled and pyramidal roofs laid over the straight skeleton of every kind of
+    /// footprint: each volume is closed and outward, and the roof is built as asked (not
+    /// flattened, nor the skeleton given up for the virtual rectangle).
+    #[test]
+    fn skeleton_roofs_are_closed_on_every_footprint(
+        (outer, holes) in footprint(),
+        shape in prop::sample::select(vec![RoofShape::Hipped, RoofShape::Gabled, RoofShape::Pyramidal]),
+        (height, roof_height) in (4.0..40.0f64, 0.0..12.0f64),
+    ) {
+        let inners: Vec<Ring> = holes.iter().enumerate().map(|(i, h)| ring(h, 1000 * (i as i64 + 1))).collect();
+        let r = Roof { shape, across: false, height, roof_height, min_height: 0.0 };
+        let record = BuildingRecord {
+            id: OsmId::Way(7),
+            is_part: false,
+            outers: vec![ring(&outer, 1)],
+            inners,
+            tags: tags(&r, 0.0),
+        };
+        // The skeleton exists for every footprint the generator accepts.
+        let footprint = Footprint::new(
+            FootprintRing::from_points(outer.clone()),
+            holes.iter().map(|h| FootprintRing::from_points(h.clone())).collect(),
+        );
+        if let Ok(f) = &footprint {
+            let built = SkeletonRoof::gabled(f).and(SkeletonRoof::hipped(f));
+            prop_assert!(built.is_ok(), "{:?}", built.err());
+        }
+        let rules = SceneRules { roof_method: RoofMethod::Skeleton, ..SceneRules::new(Border::Whole) };
+        let scene = Scene::new_with_rules(&ElevationModel::default(), &bbox(), &[vec![&record]], rules);
+        let range = scene.cluster_triangles[0].clone();
+        if scene.buildings.generated == 1 {
+            let report = check_closed(&scene.mesh, range);
+            prop_assert!(report.is_closed_and_outward(), "{report:?}");
+            prop_assert!(scene.buildings.repaired_ids.is_empty(), "{:?}", scene.buildings.repaired_ids);
+        } else {
+            prop_assert_eq!(scene.buildings.total_skipped(), 1);
         }
     }
 

@@ -12,7 +12,9 @@ use super::group::{Volume, mesh_group};
 use super::height_base::HeightBase;
 use super::params::BuildingParams;
 use super::roof::RoofShape;
+use super::roof_method::RoofMethod;
 use super::roof_surface::RoofSurface;
+use super::skeleton_roof::SkeletonRoof;
 use super::stats::{BuildingStats, MAX_AREA_LOSS_M2};
 use super::tags::BuildingTags;
 use crate::geo::{GeoBbox, LocalFrame};
@@ -30,6 +32,8 @@ pub struct BuildingContext<'a> {
     pub clip: Option<GeoBbox>,
     /// The ground `height` is counted from.
     pub heights: HeightBase,
+    /// How hipped, gabled and pyramidal roofs are laid over their footprints.
+    pub roof_method: RoofMethod,
 }
 
 /// Pieces of outline left over by parts smaller than this (m²) are slivers, not rooms.
@@ -108,7 +112,7 @@ pub fn generate_cluster_until(
         let feature = stats.features.len() as u32;
         let mut first_params: Option<BuildingParams> = None;
         for (k, footprint) in p.footprints.iter().enumerate() {
-            let Some((surface, params)) = roof_and_params(p, footprint) else {
+            let Some((surface, params)) = roof_and_params(p, footprint, ctx.roof_method) else {
                 stats.skip(p.record.id, "degenerate_footprint");
                 continue;
             };
@@ -241,10 +245,15 @@ pub struct RecordOutline {
     pub roof_height: f64,
 }
 
-/// The outline of `record` in `frame`, or `None` when it cannot be built.
-pub fn record_outline(record: &BuildingRecord, frame: &LocalFrame) -> Option<RecordOutline> {
+/// The outline of `record` in `frame`, its roof laid as `roof_method` says, or `None` when it
+/// cannot be built.
+pub fn record_outline(
+    record: &BuildingRecord,
+    frame: &LocalFrame,
+    roof_method: RoofMethod,
+) -> Option<RecordOutline> {
     let p = prepare(record, frame).ok()?;
-    let (_, params) = roof_and_params(&p, p.footprints.first()?)?;
+    let (_, params) = roof_and_params(&p, p.footprints.first()?, roof_method)?;
     Some(RecordOutline {
         area: p.footprints.iter().map(Footprint::area).sum(),
         height: params.height,
@@ -254,17 +263,33 @@ pub fn record_outline(record: &BuildingRecord, frame: &LocalFrame) -> Option<Rec
 }
 
 /// The roof over one footprint of `p` (before heights) and the parameters under it; `None`
-/// when the footprint has no axes.
-fn roof_and_params(p: &Prepared, footprint: &Footprint) -> Option<(RoofSurface, BuildingParams)> {
+/// when the footprint has no axes. A roof `roof_method` lays over the straight skeleton keeps
+/// the virtual rectangle when the skeleton cannot be built.
+fn roof_and_params(
+    p: &Prepared,
+    footprint: &Footprint,
+    roof_method: RoofMethod,
+) -> Option<(RoofSurface, BuildingParams)> {
     let axes = RoofAxes::of_ring(&footprint.outer.points).map(RoofAxes::long_first)?;
-    let surface = RoofSurface::new(
-        params_shape(&p.tags),
-        axes,
-        p.tags.orientation,
-        &footprint.outer.points,
-        p.tags.direction,
-        None,
-    );
+    let shape = params_shape(&p.tags);
+    let skeleton = roof_method
+        .uses_skeleton(shape, footprint, &axes)
+        .then(|| match shape {
+            RoofShape::Gabled => SkeletonRoof::gabled(footprint),
+            _ => SkeletonRoof::hipped(footprint),
+        })
+        .and_then(Result::ok);
+    let surface = match skeleton {
+        Some(roof) => RoofSurface::over_skeleton(shape, axes, roof),
+        None => RoofSurface::new(
+            shape,
+            axes,
+            p.tags.orientation,
+            &footprint.outer.points,
+            p.tags.direction,
+            None,
+        ),
+    };
     let params = BuildingParams::new(&p.tags, surface.run());
     Some((surface, params))
 }

@@ -1,21 +1,31 @@
 //! The roof of one building as a height function over the plane: the virtual rectangle of the
-//! footprint (turned for `roof:orientation`, or along `roof:direction` for skillions), a roof
-//! model's descending level function, and the heights of eaves and top
-//! (docs/method.md sections 4-6).
+//! footprint (turned for `roof:orientation`, or along `roof:direction` for skillions) and a roof
+//! model's descending level function, or the footprint's straight skeleton
+//! ([`super::skeleton_roof`]); and the heights of eaves and top (docs/method.md sections 4-6b).
 use super::length::planar_length;
 
 use super::axes::RoofAxes;
 use super::roof::{
     Alt, FRUSTUM_TOP, RoofModel, RoofShape, SALTBOX_RIDGE, SAWTOOTH_RISE, Sawtooth, model,
 };
+use super::skeleton_roof::SkeletonRoof;
 use super::tags::Orientation;
 
-/// A roof: `height(p) = top - roof_height * DLF(x'(p), y'(p))`.
+/// What the descending level function is laid over.
+enum Plan {
+    /// The virtual rectangle, in alternative coordinates.
+    Rectangle(Box<dyn RoofModel + Send + Sync>),
+    /// The footprint's straight skeleton, in metres.
+    Skeleton(SkeletonRoof),
+}
+
+/// A roof: `height(p) = top - roof_height * DLF(p)`, the DLF taken over the virtual rectangle
+/// (`DLF(x'(p), y'(p))`) or the straight skeleton.
 pub struct RoofSurface {
     pub shape: RoofShape,
     /// The alternative coordinates: `a = x'` runs along the ridge, `b = y'` across it.
     pub axes: RoofAxes,
-    model: Box<dyn RoofModel + Send + Sync>,
+    plan: Plan,
     /// Height of the top (ridge), metres in the local frame.
     pub top: f64,
     /// Height of the roof from eaves to top, metres (0 for flat roofs).
@@ -53,11 +63,28 @@ impl RoofSurface {
         };
         Self {
             shape,
-            model: model(shape, axes.rx, axes.ry, parameter),
+            plan: Plan::Rectangle(model(shape, axes.rx, axes.ry, parameter)),
             axes,
             top: 0.0,
             roof_height: 0.0,
         }
+    }
+
+    /// A `shape` roof over a footprint's straight skeleton (`axes`: its virtual rectangle, kept
+    /// for what asks for it).
+    pub fn over_skeleton(shape: RoofShape, axes: RoofAxes, roof: SkeletonRoof) -> Self {
+        Self {
+            shape,
+            plan: Plan::Skeleton(roof),
+            axes,
+            top: 0.0,
+            roof_height: 0.0,
+        }
+    }
+
+    /// Whether the roof is laid over the straight skeleton.
+    pub fn is_skeleton(&self) -> bool {
+        matches!(self.plan, Plan::Skeleton(_))
     }
 
     /// Sets the heights: the top of the roof and the roof's own height (eaves to top).
@@ -74,6 +101,13 @@ impl RoofSurface {
     /// The distance in metres a slope of `angle_degrees` needs to rise by `h` over this roof: the
     /// horizontal run from eaves to top.
     pub fn run(&self) -> f64 {
+        if let Plan::Skeleton(roof) = &self.plan {
+            return if self.shape == RoofShape::Flat {
+                0.0
+            } else {
+                roof.run()
+            };
+        }
         let (rx, ry) = (self.axes.rx, self.axes.ry);
         match self.shape {
             RoofShape::Flat => 0.0,
@@ -93,7 +127,10 @@ impl RoofSurface {
     /// The descending level function at a point in metres.
     #[inline]
     pub fn dlf(&self, p: [f64; 2]) -> f64 {
-        self.model.dlf(self.axes.to_alt(p))
+        match &self.plan {
+            Plan::Rectangle(model) => model.dlf(self.axes.to_alt(p)),
+            Plan::Skeleton(roof) => roof.dlf(p),
+        }
     }
 
     /// The roof height at a point in metres.
@@ -116,8 +153,12 @@ impl RoofSurface {
         if self.is_planar() {
             return Vec::new();
         }
+        let model = match &self.plan {
+            Plan::Rectangle(model) => model,
+            Plan::Skeleton(roof) => return roof.dividing_segments(),
+        };
         let mut segments: Vec<[Alt; 2]> = Vec::new();
-        for face in self.model.faces() {
+        for face in model.faces() {
             let n = face.len();
             for i in 0..n {
                 let (p, q) = (face[i], face[(i + 1) % n]);
@@ -151,7 +192,10 @@ impl RoofSurface {
         let len = planar_length(d[0], d[1]);
         let e = 1e-4;
         let n = [-d[1] / len * e, d[0] / len * e];
-        let f = |a: Alt| self.model.dlf(a);
+        let Plan::Rectangle(model) = &self.plan else {
+            return true;
+        };
+        let f = |a: Alt| model.dlf(a);
         let (l, c, r) = (
             f([m[0] + n[0], m[1] + n[1]]),
             f(m),

@@ -725,6 +725,8 @@ impl SceneBuilder {
             elevation: &self.elevation,
             clip: None,
             heights: Default::default(),
+            // The renders the classifier learnt from: kept as they were made.
+            roof_method: crate::building::RoofMethod::Rectangle,
         };
         let mut part = Mesh::default();
         let mut stats = BuildingStats::default();

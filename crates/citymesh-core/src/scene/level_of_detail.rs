@@ -11,6 +11,7 @@
 //! building's, half a flattened roof's, or the ground grid's distance from the model at its
 //! cells' centres.
 
+use crate::building::RoofMethod;
 use crate::building::generate::{RecordOutline, record_outline};
 use crate::geo::{GeoBbox, LocalFrame};
 use crate::osm::BuildingRecord;
@@ -58,6 +59,7 @@ impl LevelOfDetail {
         self,
         record: Cow<'a, BuildingRecord>,
         frame: &LocalFrame,
+        roof_method: RoofMethod,
     ) -> (Option<Cow<'a, BuildingRecord>>, Simplified) {
         if self.is_full() {
             return (Some(record), Simplified::Kept);
@@ -67,7 +69,7 @@ impl LevelOfDetail {
             height,
             min_height,
             roof_height,
-        }) = record_outline(&record, frame)
+        }) = record_outline(&record, frame, roof_method)
         else {
             // The generator will skip it and say why.
             return (Some(record), Simplified::Kept);

@@ -12,7 +12,9 @@ pub use request::{SceneArea, SceneOutput, SceneRequest};
 pub use roof_choice::RoofChoice;
 
 use crate::building::feature::property_table;
-use crate::building::{BuildingContext, BuildingStats, HeightBase, generate_cluster_until};
+use crate::building::{
+    BuildingContext, BuildingStats, HeightBase, RoofMethod, generate_cluster_until,
+};
 use crate::geo::{GeoBbox, LocalFrame};
 use crate::mesh::{EncodedGlb, Encoding, Mesh, Placement, encode_glb};
 use crate::osm::BuildingRecord;
@@ -36,6 +38,8 @@ pub struct SceneRules {
     pub ground: GroundDetail,
     /// The ground a building's `height` is counted from.
     pub heights: HeightBase,
+    /// How hipped, gabled and pyramidal roofs are laid over their footprints.
+    pub roof_method: RoofMethod,
 }
 
 impl SceneRules {
@@ -45,6 +49,7 @@ impl SceneRules {
             border,
             ground: GroundDetail::Dem,
             heights: HeightBase::default(),
+            roof_method: RoofMethod::default(),
         }
     }
 }
@@ -85,6 +90,16 @@ impl Scene {
         border: Border,
     ) -> Self {
         Self::build(model, bbox, clusters, SceneRules::new(border), &|| false, 1).0
+    }
+
+    /// Like [`Scene::new`], generated under `rules`.
+    pub fn new_with_rules(
+        model: &ElevationModel,
+        bbox: &GeoBbox,
+        clusters: &[Vec<&BuildingRecord>],
+        rules: SceneRules,
+    ) -> Self {
+        Self::build(model, bbox, clusters, rules, &|| false, 1).0
     }
 
     /// Like [`Scene::new`], but asks `stop` before each group of buildings and gives up (`None`)
@@ -132,6 +147,7 @@ impl Scene {
             elevation: model,
             clip: (rules.border == Border::Truncate).then_some(*bbox),
             heights: rules.heights,
+            roof_method: rules.roof_method,
         };
         let runs = split_runs(clusters, workers);
         let (buildings, cluster_triangles, complete) = if runs.len() <= 1 {

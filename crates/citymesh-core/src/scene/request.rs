@@ -7,7 +7,7 @@
 use super::level_of_detail::{LevelOfDetail, Simplified};
 use super::{Border, GroundDetail, RoofChoice, Scene, SceneRules};
 use crate::building::set::{BuildingSet, ClusterInfo, extent_with};
-use crate::building::{BuildingStats, HeightBase, RoofOrigin};
+use crate::building::{BuildingRules, BuildingStats, HeightBase, RoofMethod, RoofOrigin};
 use crate::geo::{BboxError, GeoBbox, ImplicitTile, LocalFrame, TileCoord};
 use crate::mesh::{EncodedGlb, Encoding, Placement};
 use crate::osm::BuildingRecord;
@@ -85,6 +85,7 @@ impl SceneArea {
             workers: 1,
             detail,
             heights: HeightBase::default(),
+            roof_method: RoofMethod::default(),
         })
     }
 }
@@ -110,6 +111,8 @@ pub struct SceneRequest<'a> {
     pub detail: LevelOfDetail,
     /// The ground a building's `height` is counted from.
     pub heights: HeightBase,
+    /// How hipped, gabled and pyramidal roofs are laid over their footprints.
+    pub roof_method: RoofMethod,
 }
 
 /// A generated, encoded scene and what went into it.
@@ -151,6 +154,20 @@ impl<'a> SceneRequest<'a> {
         Self { heights, ..self }
     }
 
+    /// The same request generated under `rules`.
+    pub fn with_rules(self, rules: BuildingRules) -> Self {
+        self.with_heights(rules.heights)
+            .with_roof_method(rules.roof_method)
+    }
+
+    /// The same request with roofs laid as `roof_method` says.
+    pub fn with_roof_method(self, roof_method: RoofMethod) -> Self {
+        Self {
+            roof_method,
+            ..self
+        }
+    }
+
     /// The same request encoded with `encoding`.
     pub fn with_encoding(self, encoding: Encoding) -> Self {
         Self { encoding, ..self }
@@ -178,7 +195,7 @@ impl<'a> SceneRequest<'a> {
                 }
                 chosen
                     .into_iter()
-                    .filter_map(|r| self.detail.simplify(r, &frame).0)
+                    .filter_map(|r| self.detail.simplify(r, &frame, self.roof_method).0)
                     .collect()
             })
             .filter(|g: &Vec<_>| !g.is_empty())
@@ -202,7 +219,11 @@ impl<'a> SceneRequest<'a> {
         let mut worst = LevelOfDetail::ground_error(&self.bbox, model);
         for c in &self.groups {
             for r in self.set.cluster_records(c) {
-                let hidden = match self.detail.simplify(Cow::Borrowed(r), &frame).1 {
+                let hidden = match self
+                    .detail
+                    .simplify(Cow::Borrowed(r), &frame, self.roof_method)
+                    .1
+                {
                     Simplified::Kept => 0.0,
                     Simplified::Flattened { hidden_m } | Simplified::Dropped { hidden_m } => {
                         hidden_m
@@ -254,6 +275,7 @@ impl<'a> SceneRequest<'a> {
             border: self.border,
             ground,
             heights: self.heights,
+            roof_method: self.roof_method,
         };
         Scene::build(model, &self.bbox, &as_refs(&records), rules, stop, workers)
     }

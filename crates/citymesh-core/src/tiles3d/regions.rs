@@ -4,7 +4,7 @@
 //! metadata with the semantic `TILE_BOUNDING_REGION`, so a client's bounding volume encloses
 //! the content and its heights are tight.
 
-use crate::building::HeightBase;
+use crate::building::BuildingRules;
 use crate::building::set::BuildingSet;
 use crate::geo::{GeoBbox, ImplicitTile, morton};
 use crate::scene::{RoofChoice, SceneArea, SceneRequest};
@@ -201,7 +201,7 @@ pub fn measure_regions(
     set: &BuildingSet,
     model_for: &dyn Fn(&GeoBbox) -> ElevationModel,
     variants: &[RoofChoice],
-    heights: HeightBase,
+    rules: BuildingRules,
     stop: &dyn Fn() -> bool,
 ) -> Option<TileRegions> {
     let mut stopped = false;
@@ -216,7 +216,7 @@ pub fn measure_regions(
             let request = SceneArea::Implicit { root: *root, tile }
                 .request(set)
                 .ok()?
-                .with_heights(heights);
+                .with_rules(rules);
             let model = model_for(&request.terrain_bbox());
             let extent = |r: &SceneRequest<'_>| r.scene(&model).geographic_extent();
             let mut region = extent(&request);
