@@ -103,5 +103,61 @@ fn kirchfeld(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, kirchfeld);
+/// Roofs over the straight skeleton: the Kirchfeld scene with every hipped, gabled and
+/// pyramidal roof laid over the virtual rectangle, then over the skeleton (the ratio is the
+/// skeleton's cost), and the skeleton of one U-shaped and one 64-vertex outline alone.
+fn roof_methods(c: &mut Criterion) {
+    use citymesh_core::building::RoofMethod;
+    use citymesh_core::building::straight_skeleton::Skeleton;
+    use citymesh_core::scene::SceneRules;
+    let model = ElevationModel::new(vec![Arc::new(
+        HgtTile::from_bytes(49, 8, &read("dem/N49E008.hgt")).unwrap(),
+    )]);
+    let pbf = read("osm/karlsruhe-kirchfeld.osm.pbf");
+    let set = BuildingSet::new(read_buildings(&pbf).unwrap().buildings);
+    let groups = set.groups();
+    let bbox = set.extent().unwrap();
+    for method in [
+        RoofMethod::Rectangle,
+        RoofMethod::Auto,
+        RoofMethod::Skeleton,
+    ] {
+        let rules = SceneRules {
+            roof_method: method,
+            ..SceneRules::new(Border::Whole)
+        };
+        c.bench_function(&format!("kirchfeld_scene_roofs_{}", method.name()), |b| {
+            b.iter(|| Scene::new_with_rules(black_box(&model), &bbox, &groups, rules));
+        });
+    }
+    let u: Vec<[f64; 2]> = vec![
+        [0.0, 0.0],
+        [20.0, 0.0],
+        [20.0, 15.0],
+        [14.0, 15.0],
+        [14.0, 6.0],
+        [6.0, 6.0],
+        [6.0, 15.0],
+        [0.0, 15.0],
+    ];
+    c.bench_function("straight_skeleton_u", |b| {
+        b.iter(|| Skeleton::of(&[black_box(&u)]).unwrap().nodes.len());
+    });
+    // Regular stars: half their vertices reflex, every event at once (the worst case: the
+    // exact simulation fails and the outline is shaken).
+    for n in [64, 128] {
+        let star: Vec<[f64; 2]> = (0..n)
+            .map(|k| {
+                let a = k as f64 / n as f64 * std::f64::consts::TAU;
+                let r = if k % 2 == 0 { 30.0 } else { 22.0 };
+                [r * a.cos(), r * a.sin()]
+            })
+            .collect();
+        c.bench_function(&format!("straight_skeleton_star_{n}"), |b| {
+            b.iter(|| Skeleton::of(&[black_box(&star)]).unwrap().nodes.len());
+        });
+    }
+}
+
+criterion_group!(benches, kirchfeld, roof_methods);
 criterion_main!(benches);
