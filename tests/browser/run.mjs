@@ -12,7 +12,7 @@ import { PNG } from 'pngjs';
 import { spawn } from 'node:child_process';
 import { createServer } from 'node:http';
 import { mkdirSync, existsSync, rmSync } from 'node:fs';
-import { readFile } from 'node:fs/promises';
+import { readFile, writeFile } from 'node:fs/promises';
 import { resolve, dirname, extname } from 'node:path';
 import { fileURLToPath } from 'node:url';
 
@@ -403,6 +403,43 @@ try {
     const roofsHeader = tile.headers.get('x-citymesh-roofs');
     if (!roofsHeader) throw new Error('no X-Citymesh-Roofs');
     console.log(`  ${batch.counts.queued} jobs; ${s.stats.roof_shape_from_classifier_percent.toFixed(1)} % of the view's roofs from the classifier; tile: ${roofsHeader}`);
+    await v.page.close();
+  });
+
+  await check('viewer shows hipped and gabled roofs over L, T and U outlines (straight skeleton)', async () => {
+    // Six buildings in OSM XML around (8.4 E, 49.01 N): L, T and U, hipped in front, gabled
+    // behind; wings 6 m wide, 9 m tall, no roof:height.
+    const outlines = [
+      [[0, 0], [20, 0], [20, 6], [6, 6], [6, 14], [0, 14]],
+      [[0, 10], [6, 10], [6, 0], [12, 0], [12, 10], [18, 10], [18, 16], [0, 16]],
+      [[0, 0], [20, 0], [20, 15], [14, 15], [14, 6], [6, 6], [6, 15], [0, 15]],
+    ];
+    const [lon0, lat0] = [8.4, 49.01];
+    const a = 6378137, e2 = 6.69437999014e-3, phi = lat0 * Math.PI / 180, w = Math.sqrt(1 - e2 * Math.sin(phi) ** 2);
+    const mLon = a / w * Math.cos(phi) * Math.PI / 180, mLat = a * (1 - e2) / (w * w * w) * Math.PI / 180;
+    let nodes = '', ways = '', id = 1;
+    outlines.forEach((ring, k) => ['hipped', 'gabled'].forEach((shape, row) => {
+      const ids = ring.map(([x, y]) => {
+        const [lon, lat] = [lon0 + (x + k * 40 - 30) / mLon, lat0 + (y + row * 30) / mLat];
+        nodes += `<node id="${id}" lat="${lat.toFixed(9)}" lon="${lon.toFixed(9)}"/>\n`;
+        return id++;
+      });
+      ways += `<way id="${id++}">${[...ids, ids[0]].map((n) => `<nd ref="${n}"/>`).join('')}` +
+        `<tag k="building" v="yes"/><tag k="height" v="9"/><tag k="roof:shape" v="${shape}"/></way>\n`;
+    }));
+    const osm = resolve(artifacts, 'winged-outlines.osm');
+    await writeFile(osm, `<?xml version="1.0" encoding="UTF-8"?>\n<osm version="0.6">\n${nodes}${ways}</osm>\n`);
+    const server = await startServer('winged', ['--dem-dir', resolve(root, 'target/no-dem'), '--osm', osm]);
+    servers.push(server.child);
+    const v = await open(`${server.url}/?lon=${lon0}&lat=${lat0 + 0.0002}&zoom=18&radius=1&camera=-40,45,60`,
+      'window.citymeshViewer && window.citymeshViewer.ready && window.citymeshViewer.stats');
+    const s = await v.page.evaluate(() => window.citymeshViewer);
+    await v.page.screenshot({ path: `${artifacts}/viewer-winged-roofs.png` });
+    if (v.problems.length) throw new Error(v.problems.join('\n'));
+    if (s.tilesLoaded !== s.tilesWanted || s.tilesFailed) throw new Error(`tiles: ${JSON.stringify(s)}`);
+    if (s.stats.buildings.generated !== 6) throw new Error(`buildings: ${JSON.stringify(s.stats.buildings)}`);
+    if (s.stats.roof_shape_from_tag_percent !== 100) throw new Error(`roof shapes: ${JSON.stringify(s.stats)}`);
+    console.log(`  ${s.tilesLoaded} tiles; ${s.stats.buildings.generated} buildings; screenshot viewer-winged-roofs.png`);
     await v.page.close();
   });
 } catch (e) {

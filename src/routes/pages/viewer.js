@@ -35,7 +35,10 @@ document.body.appendChild(renderer.domElement);
 const scene = new THREE.Scene();
 scene.background = new THREE.Color(0xbcd4e6);
 const camera = new THREE.PerspectiveCamera(50, innerWidth / innerHeight, 1, 20000);
-camera.position.set(-350, 450, 550);
+// `?camera=x,y,z`: where the camera stands, metres east, up and south of the place shown.
+const at = (q.get('camera') ?? '').split(',').map(Number);
+if (at.length === 3 && at.every(Number.isFinite)) camera.position.set(at[0], at[1], at[2]);
+else camera.position.set(-350, 450, 550);
 const controls = new OrbitControls(camera, renderer.domElement);
 controls.target.set(0, 0, 0);
 controls.maxPolarAngle = Math.PI * 0.49;
