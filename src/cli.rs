@@ -414,9 +414,13 @@ pub struct ExportArgs {
     #[arg(long)]
     pub bbox: String,
 
-    /// The directory to write the tree into (created if missing; files already there are kept).
+    /// Where to write the tree: a directory (created if missing) or `file://` URL, or an
+    /// S3-compatible object store as `s3://BUCKET/PREFIX` (credentials, region and endpoint from
+    /// the usual `AWS_*` variables: `AWS_ACCESS_KEY_ID`, `AWS_SECRET_ACCESS_KEY`, `AWS_REGION`,
+    /// `AWS_ENDPOINT_URL` for a store other than Amazon's, `AWS_ALLOW_HTTP=true` for plain
+    /// HTTP). Files already there are kept: a rerun resumes.
     #[arg(long, short)]
-    pub out: PathBuf,
+    pub out: String,
 
     /// `3dtiles` (as `/3dtiles/tileset.json` serves it) or `xyz`.
     #[arg(long, value_enum, default_value_t = ExportFormat::Tiles3d)]

@@ -211,3 +211,181 @@ fn a_wrong_export_says_what_to_fix() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--bbox"));
 }
+
+/// An S3 API (moto's server, from the test venv) on a free port of 127.0.0.1, killed on drop.
+struct S3Server {
+    child: std::process::Child,
+    endpoint: String,
+}
+
+impl Drop for S3Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn start_s3() -> S3Server {
+    let moto = Path::new(env!("CARGO_MANIFEST_DIR")).join(".venv/bin/moto_server");
+    assert!(
+        moto.exists(),
+        "{} is missing: scripts/test installs it (tests/requirements.txt)",
+        moto.display()
+    );
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let child = Command::new(&moto)
+        .args(["-H", "127.0.0.1", "-p", &port.to_string()])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let server = S3Server {
+        child,
+        endpoint: format!("http://127.0.0.1:{port}"),
+    };
+    for _ in 0..300 {
+        if std::net::TcpStream::connect(("127.0.0.1", port)).is_ok() {
+            return server;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    panic!("moto_server did not listen on port {port}");
+}
+
+/// A bucket on the test's S3 server, and a client of it.
+fn bucket(s3: &S3Server, name: &str) -> object_store::aws::AmazonS3 {
+    use std::io::{Read, Write};
+    // moto creates a bucket on an unsigned PUT.
+    let mut c = std::net::TcpStream::connect(s3.endpoint.trim_start_matches("http://")).unwrap();
+    write!(
+        c,
+        "PUT /{name} HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: 0\r\nConnection: close\r\n\r\n"
+    )
+    .unwrap();
+    let mut answer = String::new();
+    c.read_to_string(&mut answer).unwrap();
+    assert!(answer.starts_with("HTTP/1.1 200"), "{answer}");
+    object_store::aws::AmazonS3Builder::new()
+        .with_endpoint(&s3.endpoint)
+        .with_allow_http(true)
+        .with_bucket_name(name)
+        .with_region("us-east-1")
+        .with_access_key_id("test")
+        .with_secret_access_key("test")
+        .build()
+        .unwrap()
+}
+
+/// Every object under `prefix` with its bytes, by path relative to the prefix.
+fn objects(store: &object_store::aws::AmazonS3, prefix: &str) -> BTreeMap<String, Vec<u8>> {
+    use futures_util::TryStreamExt;
+    use object_store::ObjectStore;
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    rt.block_on(async {
+        let prefix = object_store::path::Path::from(prefix);
+        let listed: Vec<_> = store.list(Some(&prefix)).try_collect().await.unwrap();
+        let mut out = BTreeMap::new();
+        for meta in listed {
+            let bytes = store
+                .get(&meta.location)
+                .await
+                .unwrap()
+                .bytes()
+                .await
+                .unwrap();
+            let rel = meta.location.as_ref()[prefix.as_ref().len() + 1..].to_owned();
+            out.insert(rel, bytes.to_vec());
+        }
+        out
+    })
+}
+
+#[test]
+fn an_export_to_an_s3_store_equals_the_directory_export_and_resumes() {
+    let s3 = start_s3();
+    let store = bucket(&s3, "tiles");
+    let bbox = "8.392,49.043,8.396,49.046";
+    let with_s3 = |c: &mut Command| {
+        c.env("AWS_ENDPOINT_URL", &s3.endpoint)
+            .env("AWS_ALLOW_HTTP", "true")
+            .env("AWS_REGION", "us-east-1")
+            .env("AWS_ACCESS_KEY_ID", "test")
+            .env("AWS_SECRET_ACCESS_KEY", "test");
+    };
+    let run = |out: &str| {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_citymesh"));
+        c.args(["export", "--bbox", bbox, "--out", out, "--osm"])
+            .arg(data_dir().join("osm/karlsruhe-kirchfeld.osm.pbf"))
+            .arg("--dem-dir")
+            .arg(dem_dir())
+            .args(["--cache-db", ":memory:", "--log-level", "warn"]);
+        with_s3(&mut c);
+        let out = c.output().unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let local = run(dir.path().to_str().unwrap());
+    let remote = run("s3://tiles/karlsruhe/3d");
+    let files = tree(dir.path());
+    let n = files.len();
+    assert!(
+        local.contains(&format!("exported {n} files ({n} written now, 0 kept)")),
+        "{local}"
+    );
+    assert!(
+        remote.contains(&format!("exported {n} files ({n} written now, 0 kept)")),
+        "{remote}"
+    );
+    // The same files, byte for byte, under the prefix.
+    assert_eq!(objects(&store, "karlsruhe/3d"), files);
+    // A rerun writes nothing; one with a tile and the tileset gone writes those two.
+    let again = run("s3://tiles/karlsruhe/3d");
+    assert!(
+        again.contains(&format!("({} written now, {n} kept)", 0)),
+        "{again}"
+    );
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    rt.block_on(async {
+        use object_store::ObjectStore;
+        for key in [
+            "karlsruhe/3d/tileset.json",
+            "karlsruhe/3d/content/0/0/0.glb",
+        ] {
+            store
+                .delete(&object_store::path::Path::from(key))
+                .await
+                .unwrap();
+        }
+    });
+    let resumed = run("s3://tiles/karlsruhe/3d");
+    assert!(
+        resumed.contains(&format!("(2 written now, {} kept)", n - 2)),
+        "{resumed}"
+    );
+    assert_eq!(objects(&store, "karlsruhe/3d"), files);
+    // A store that does not answer, or no bucket, says what to fix.
+    let mut c = Command::new(env!("CARGO_BIN_EXE_citymesh"));
+    c.args(["export", "--bbox", bbox, "--out", "s3://missing/x", "--osm"])
+        .arg(data_dir().join("osm/karlsruhe-kirchfeld.osm.pbf"))
+        .args(["--cache-db", ":memory:", "--log-level", "warn"]);
+    with_s3(&mut c);
+    let out = c.output().unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--out s3://missing/x"), "{err}");
+}
