@@ -31,12 +31,18 @@ fn read(name: &str) -> Vec<u8> {
         .unwrap_or_else(|e| panic!("{}: {e} (set CITYMESH_DATA_DIR)", path.display()))
 }
 
-fn kirchfeld(c: &mut Criterion) {
+/// Kirchfeld's ground, its OSM PBF and its buildings.
+fn kirchfeld_data() -> (ElevationModel, Vec<u8>, BuildingSet) {
     let model = ElevationModel::new(vec![Arc::new(
         HgtTile::from_bytes(49, 8, &read("dem/N49E008.hgt")).unwrap(),
     )]);
     let pbf = read("osm/karlsruhe-kirchfeld.osm.pbf");
     let set = BuildingSet::new(read_buildings(&pbf).unwrap().buildings);
+    (model, pbf, set)
+}
+
+fn kirchfeld(c: &mut Criterion) {
+    let (model, pbf, set) = kirchfeld_data();
     let groups = set.groups();
     let bbox = set.extent().unwrap();
 
@@ -110,11 +116,7 @@ fn roof_methods(c: &mut Criterion) {
     use citymesh_core::building::RoofMethod;
     use citymesh_core::building::straight_skeleton::Skeleton;
     use citymesh_core::scene::SceneRules;
-    let model = ElevationModel::new(vec![Arc::new(
-        HgtTile::from_bytes(49, 8, &read("dem/N49E008.hgt")).unwrap(),
-    )]);
-    let pbf = read("osm/karlsruhe-kirchfeld.osm.pbf");
-    let set = BuildingSet::new(read_buildings(&pbf).unwrap().buildings);
+    let (model, _, set) = kirchfeld_data();
     let groups = set.groups();
     let bbox = set.extent().unwrap();
     for method in [
