@@ -290,3 +290,45 @@ proptest! {
         prop_assert!(report.is_closed_and_outward(), "{report:?}");
     }
 }
+
+/// A hipped roof over an outline past the skeleton's limit (a 130-pointed star) keeps the
+/// virtual rectangle, says so by id, and is still closed.
+#[test]
+fn a_roof_past_the_skeletons_limit_keeps_the_rectangle_and_says_so() {
+    use citymesh_core::building::straight_skeleton::MAX_SKELETON_VERTICES;
+    let n = MAX_SKELETON_VERTICES + 2;
+    let star: Vec<[f64; 2]> = (0..n)
+        .map(|k| {
+            let a = k as f64 / n as f64 * std::f64::consts::TAU;
+            let r = if k % 2 == 0 { 30.0 } else { 22.0 };
+            [r * a.cos(), r * a.sin()]
+        })
+        .collect();
+    let r = Roof {
+        shape: RoofShape::Hipped,
+        across: false,
+        height: 12.0,
+        roof_height: 4.0,
+        min_height: 0.0,
+    };
+    let record = BuildingRecord {
+        id: OsmId::Way(7),
+        is_part: false,
+        outers: vec![ring(&star, 1)],
+        inners: Vec::new(),
+        tags: tags(&r, 0.0),
+    };
+    let scene = Scene::new(
+        &ElevationModel::default(),
+        &bbox(),
+        &[vec![&record]],
+        Border::Whole,
+    );
+    assert_eq!(scene.buildings.generated, 1);
+    assert_eq!(
+        scene.buildings.repaired_ids,
+        vec![("way/7".to_owned(), "roof_on_virtual_rectangle")]
+    );
+    let report = check_closed(&scene.mesh, scene.cluster_triangles[0].clone());
+    assert!(report.is_closed_and_outward(), "{report:?}");
+}

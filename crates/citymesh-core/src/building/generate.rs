@@ -112,10 +112,17 @@ pub fn generate_cluster_until(
         let feature = stats.features.len() as u32;
         let mut first_params: Option<BuildingParams> = None;
         for (k, footprint) in p.footprints.iter().enumerate() {
-            let Some((surface, params)) = roof_and_params(p, footprint, ctx.roof_method) else {
+            let Some((surface, params, on_rectangle)) =
+                roof_and_params(p, footprint, ctx.roof_method)
+            else {
                 stats.skip(p.record.id, "degenerate_footprint");
                 continue;
             };
+            if on_rectangle {
+                stats
+                    .repaired_ids
+                    .push((p.record.id.to_string(), "roof_on_virtual_rectangle"));
+            }
             let ring: Vec<(f64, f64)> = ground_ring
                 .get(k)
                 .or(ground_ring.first())
@@ -253,7 +260,7 @@ pub fn record_outline(
     roof_method: RoofMethod,
 ) -> Option<RecordOutline> {
     let p = prepare(record, frame).ok()?;
-    let (_, params) = roof_and_params(&p, p.footprints.first()?, roof_method)?;
+    let (_, params, _) = roof_and_params(&p, p.footprints.first()?, roof_method)?;
     Some(RecordOutline {
         area: p.footprints.iter().map(Footprint::area).sum(),
         height: params.height,
@@ -262,23 +269,25 @@ pub fn record_outline(
     })
 }
 
-/// The roof over one footprint of `p` (before heights) and the parameters under it; `None`
-/// when the footprint has no axes. A roof `roof_method` lays over the straight skeleton keeps
-/// the virtual rectangle when the skeleton cannot be built.
+/// The roof over one footprint of `p` (before heights), the parameters under it, and whether a
+/// roof `roof_method` lays over the straight skeleton had to keep the virtual rectangle (the
+/// footprint has more than [`super::straight_skeleton::MAX_SKELETON_VERTICES`] vertices, or its
+/// skeleton could not be built); `None` when the footprint has no axes.
 fn roof_and_params(
     p: &Prepared,
     footprint: &Footprint,
     roof_method: RoofMethod,
-) -> Option<(RoofSurface, BuildingParams)> {
+) -> Option<(RoofSurface, BuildingParams, bool)> {
     let axes = RoofAxes::of_ring(&footprint.outer.points).map(RoofAxes::long_first)?;
     let shape = params_shape(&p.tags);
-    let skeleton = roof_method
-        .uses_skeleton(shape, footprint, &axes)
+    let wanted = roof_method.uses_skeleton(shape, footprint, &axes);
+    let skeleton = wanted
         .then(|| match shape {
             RoofShape::Gabled => SkeletonRoof::gabled(footprint),
             _ => SkeletonRoof::hipped(footprint),
         })
         .and_then(Result::ok);
+    let on_rectangle = wanted && skeleton.is_none();
     let surface = match skeleton {
         Some(roof) => RoofSurface::over_skeleton(shape, axes, roof),
         None => RoofSurface::new(
@@ -291,7 +300,7 @@ fn roof_and_params(
         ),
     };
     let params = BuildingParams::new(&p.tags, surface.run());
-    Some((surface, params))
+    Some((surface, params, on_rectangle))
 }
 
 fn params_shape(tags: &BuildingTags) -> RoofShape {
