@@ -320,3 +320,77 @@ fn a_scene_box_truncates_buildings_at_its_border() {
         );
     }
 }
+
+/// Every outline of the real data (all buildings and parts of every OSM file, whatever their
+/// roof) has a straight skeleton: the count of outlines without one is exact, by file.
+#[test]
+fn every_real_outline_has_a_straight_skeleton() {
+    use citymesh_core::building::footprint::{Footprint, FootprintRing};
+    use citymesh_core::building::straight_skeleton::{
+        MAX_SKELETON_VERTICES, Skeleton, SkeletonError,
+    };
+    use citymesh_core::geo::LocalFrame;
+    // File, outlines, of those with courtyards, of those over the skeleton's vertex limit.
+    for (file, want_outlines, want_courtyards, want_too_big) in [
+        ("karlsruhe-kirchfeld.osm.pbf", 3026, 5, 0),
+        ("karlsruhe-kit-nord.osm.pbf", 602, 1, 0),
+        ("nuremberg-laufamholz.osm", 118, 1, 0),
+        ("san-francisco.overpass.json.gz", 617, 2, 0),
+    ] {
+        let osm = read_buildings(&common::osm_bytes(file)).unwrap();
+        let (mut outlines, mut courtyards, mut too_big, mut failed) = (0, 0, 0, Vec::new());
+        for record in &osm.buildings {
+            let first = &record.outers[0].nodes[0];
+            let frame = LocalFrame::new(first.lon, first.lat, 0.0);
+            let ring = |r: &citymesh_core::osm::Ring| {
+                FootprintRing::from_points(
+                    r.nodes
+                        .iter()
+                        .map(|n| {
+                            let p = frame.to_local(n.lon, n.lat, 0.0);
+                            [p[0], p[1]]
+                        })
+                        .collect(),
+                )
+            };
+            for outer in &record.outers {
+                // Courtyards go with the outer ring that holds them, as the generator does.
+                let outer = ring(outer);
+                let holes = record
+                    .inners
+                    .iter()
+                    .map(ring)
+                    .filter(|h| {
+                        h.points.first().is_some_and(|p| {
+                            citymesh_core::building::footprint::inside(&outer.points, *p)
+                        })
+                    })
+                    .collect();
+                let Ok(footprint) = Footprint::new(outer, holes) else {
+                    continue;
+                };
+                outlines += 1;
+                courtyards += usize::from(!footprint.holes.is_empty());
+                let rings: Vec<&[[f64; 2]]> =
+                    footprint.rings().map(|r| r.points.as_slice()).collect();
+                match Skeleton::of(&rings) {
+                    Ok(_) => {}
+                    Err(SkeletonError::TooManyVertices) => too_big += 1,
+                    Err(e) => failed.push((record.id.to_string(), e)),
+                }
+            }
+        }
+        eprintln!(
+            "{file}: {outlines} outlines ({courtyards} with courtyards), {too_big} over \
+             {MAX_SKELETON_VERTICES} vertices, {} failed",
+            failed.len()
+        );
+        assert!(failed.is_empty(), "{file}: {failed:?}");
+        assert_eq!(too_big, want_too_big, "{file}");
+        assert_eq!(
+            (outlines, courtyards),
+            (want_outlines, want_courtyards),
+            "{file}"
+        );
+    }
+}
