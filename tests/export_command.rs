@@ -226,7 +226,12 @@ impl Drop for S3Server {
 }
 
 fn start_s3() -> S3Server {
-    let moto = Path::new(env!("CARGO_MANIFEST_DIR")).join(".venv/bin/moto_server");
+    // The test venv: `CITYMESH_VENV` if set (as scripts/test takes it), else `.venv`.
+    let venv = std::env::var_os("CITYMESH_VENV").map_or_else(
+        || Path::new(env!("CARGO_MANIFEST_DIR")).join(".venv"),
+        std::path::PathBuf::from,
+    );
+    let moto = venv.join("bin/moto_server");
     assert!(
         moto.exists(),
         "{} is missing: scripts/test installs it (tests/requirements.txt)",
