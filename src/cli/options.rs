@@ -1,7 +1,7 @@
 //! Value options shared by `scene`, `serve` and `export`: how vertices are encoded, where
 //! `height` counts from, how pitched roofs are laid.
 
-/// `--roof-method`: how pitched roofs are laid over footprints (docs/method.md section 6b).
+/// `--roof-method`: how pitched roofs are laid over footprints (docs/method.md section 6.7).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum RoofMethodArg {
     /// The straight skeleton for footprints with courtyards or filling less than 90 % of their

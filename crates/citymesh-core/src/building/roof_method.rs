@@ -1,4 +1,4 @@
-//! How a pitched roof is laid over its footprint (docs/method.md section 6b): the paper's
+//! How a pitched roof is laid over its footprint (docs/method.md section 6.7): the paper's
 //! virtual rectangle, or the footprint's straight skeleton.
 
 use super::axes::RoofAxes;

@@ -1,7 +1,7 @@
 //! The roof of one building as a height function over the plane: the virtual rectangle of the
 //! footprint (turned for `roof:orientation`, or along `roof:direction` for skillions) and a roof
 //! model's descending level function, or the footprint's straight skeleton
-//! ([`super::skeleton_roof`]); and the heights of eaves and top (docs/method.md sections 4-6b).
+//! ([`super::skeleton_roof`]); and the heights of eaves and top (docs/method.md sections 4-6.7).
 use super::length::planar_length;
 
 use super::axes::RoofAxes;

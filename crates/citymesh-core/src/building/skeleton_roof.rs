@@ -1,5 +1,5 @@
 //! Hipped, gabled and pyramidal roofs over any footprint, courtyards included, from its straight
-//! skeleton (docs/method.md section 6b): each face rises from its own edge at one pitch, so
+//! skeleton (docs/method.md section 6.7): each face rises from its own edge at one pitch, so
 //! ridges follow the wings of an L, T or U and valleys run into their inner corners. A gabled
 //! roof is the hipped one with each hip end that closes a wing (a triangle between two parallel
 //! sides) turned upright into a gable: its top is moved along the ridge onto the end wall.
