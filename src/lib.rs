@@ -21,6 +21,7 @@ pub mod import;
 pub mod jobs;
 pub mod metrics;
 pub mod pipeline;
+pub mod roof_prior;
 pub mod routes;
 pub mod scene_file;
 pub mod server;

@@ -83,6 +83,11 @@ fn run_batch(command: Command) -> anyhow::Result<()> {
             );
             Ok(())
         }
+        Command::InferRoofs(args) => {
+            let report = citymesh::roof_prior::infer_roofs(&args)?;
+            println!("{report}");
+            Ok(())
+        }
         Command::Openapi => {
             println!("{}", citymesh::routes::openapi_json());
             Ok(())

@@ -6,6 +6,7 @@ use clap::{Parser, Subcommand};
 mod classify;
 mod export;
 mod import;
+mod infer_roofs;
 mod options;
 mod scene;
 mod serve;
@@ -13,6 +14,7 @@ mod serve;
 pub use classify::*;
 pub use export::*;
 pub use import::*;
+pub use infer_roofs::*;
 pub use options::*;
 pub use scene::*;
 pub use serve::*;
@@ -61,6 +63,11 @@ pub enum Command {
     /// Classify the roofs of OSM buildings from an XYZ imagery service, in the foreground: writes
     /// the predictions as GeoJSON and, with --all, how they agree with the roof:shape tags.
     Classify(ClassifyArgs),
+    /// Predict the roof shapes of buildings without `roof:shape` from the tagged buildings of
+    /// the same files (the roof prior, docs/method.md section 14): writes every untagged
+    /// building with its class and probability as GeoJSON, and prints the prior's
+    /// cross-validated accuracy on the tagged ones.
+    InferRoofs(InferRoofsArgs),
 }
 
 impl Default for Command {

@@ -1,4 +1,4 @@
-//! Stratified k-fold cross-validation of [`SoftmaxRegression`] on examples that each hold several
+//! Stratified k-fold cross-validation (of [`SoftmaxRegression`] or any learner) on examples that each hold several
 //! rows (a building seen in several turns and flips): rows of one example never fall on both
 //! sides of a fold, and an example's prediction is the mean of its rows' probabilities.
 
@@ -56,15 +56,34 @@ pub fn predict_example(model: &SoftmaxRegression, rows: &[Vec<f32>]) -> Option<V
     (!rows.is_empty()).then_some(mean)
 }
 
-/// Stratified `folds`-fold cross-validation: the examples of each class are dealt to the folds
-/// in turn, in input order. `None` when fewer than 2 folds or a fit fails.
+/// Stratified `folds`-fold cross-validation of [`SoftmaxRegression`]: the examples of each class
+/// are dealt to the folds in turn, in input order. `None` when fewer than 2 folds or a fit fails.
 pub fn cross_validate(
     examples: &[Example],
     classes: usize,
     folds: usize,
     options: FitOptions,
 ) -> Option<CrossValidation> {
-    if folds < 2 || examples.len() < folds {
+    cross_validate_with(
+        examples,
+        classes,
+        folds,
+        |train| fit_examples(train, classes, options),
+        predict_example,
+    )
+}
+
+/// Stratified `folds`-fold cross-validation of any learner: `fit` makes a model of the training
+/// examples, `predict` gives an example's probabilities. The examples of each class are dealt to
+/// the folds in turn, in input order. `None` when fewer than 2 folds or a fit fails.
+pub fn cross_validate_with<M>(
+    examples: &[Example],
+    classes: usize,
+    folds: usize,
+    fit: impl Fn(&[&Example]) -> Option<M>,
+    predict: impl Fn(&M, &[Vec<f32>]) -> Option<Vec<f32>>,
+) -> Option<CrossValidation> {
+    if folds < 2 || examples.len() < folds || classes == 0 {
         return None;
     }
     let mut seen = vec![0usize; classes];
@@ -86,16 +105,16 @@ pub fn cross_validate(
             .filter(|(_, g)| **g != f)
             .map(|(e, _)| e)
             .collect();
-        let model = fit_examples(&train, classes, options)?;
+        let model = fit(&train)?;
         for (i, e) in examples.iter().enumerate() {
             if fold_of[i] == f {
-                probabilities[i] = predict_example(&model, &e.rows)?;
+                probabilities[i] = predict(&model, &e.rows)?;
             }
         }
     }
     let mut confusion = vec![vec![0usize; classes]; classes];
     for (e, p) in examples.iter().zip(&probabilities) {
-        confusion[e.label.min(classes - 1)][argmax(p)] += 1;
+        confusion[e.label.min(classes - 1)][argmax(p).min(classes - 1)] += 1;
     }
     let correct = (0..classes).map(|c| confusion[c][c]).sum();
     Some(CrossValidation {
