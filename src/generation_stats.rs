@@ -22,4 +22,6 @@ pub struct GenerationStats {
     pub groups: usize,
     /// Buildings whose roof shape came from the classifier (counted in `buildings` as tagged).
     pub chosen_roofs: usize,
+    /// Buildings whose roof shape came from the roof prior (counted in `buildings` as tagged).
+    pub inferred_roofs: usize,
 }

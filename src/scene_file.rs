@@ -127,7 +127,7 @@ pub fn export_scene(args: &SceneArgs) -> anyhow::Result<SceneReport> {
             },
             "missing_dem": lookup.missing,
             // The same figures as /scene/stats gives.
-            "buildings": BuildingFigures::of(&output.buildings, 0),
+            "buildings": BuildingFigures::of(&output.buildings, 0, 0),
             "skipped_when_reading": load_skips.len(),
             "flat_roof_percent": output.buildings.flat_roof_percent(),
         });

@@ -66,6 +66,8 @@ pub struct ServerState {
     pub classifier: Option<Arc<dyn crate::classifier::RoofClassifier>>,
     /// Roof jobs, their workers, and the predictions `roofs=classified` uses.
     pub roofs: Arc<crate::jobs::RoofJobs>,
+    /// The roof priors learned from each area's tags (`roofs=inferred`).
+    pub priors: Arc<crate::cache::RoofPriors>,
     /// Origins whose pages may change state (`--cors-origin`), besides the server's own.
     pub cors_origins: Arc<Vec<String>>,
     /// What the memory caches may hold (`--memory-mb`).
@@ -88,6 +90,7 @@ impl ServerState {
                 .unwrap_or(0),
         ));
         out.extend(self.source.memory_use().await);
+        out.push(("roof_priors", self.priors.weighted_size().await));
         out
     }
 }

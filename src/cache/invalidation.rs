@@ -2,23 +2,28 @@
 //! source's announcements and drops the generated content over each changed area, in memory and
 //! in SQLite. `citymesh import` (no server running) drops stored tiles the same way.
 
-use super::TileCache;
 use super::store::TileStore;
+use super::{RoofPriors, TileCache};
 use crate::source::{BuildingSource, DataChanged};
 use citymesh_core::geo::GeoBbox;
 use std::sync::Arc;
 use tokio::sync::broadcast::error::RecvError;
 
 /// Follows `source`'s announcements for as long as the source lives.
-pub fn subscribe(source: &dyn BuildingSource, tiles: Arc<TileCache>) {
+pub fn subscribe(source: &dyn BuildingSource, tiles: Arc<TileCache>, priors: Arc<RoofPriors>) {
     let mut changes = source.subscribe();
     tokio::spawn(async move {
         loop {
             match changes.recv().await {
-                Ok(DataChanged { area }) => match tiles.invalidate_area(&area).await {
-                    Ok(n) => tracing::info!(%area, removed = n, "data changed; tiles invalidated"),
-                    Err(e) => tracing::error!(%area, "cannot invalidate tiles: {e}"),
-                },
+                Ok(DataChanged { area }) => {
+                    priors.invalidate_area(&area);
+                    match tiles.invalidate_area(&area).await {
+                        Ok(n) => {
+                            tracing::info!(%area, removed = n, "data changed; tiles invalidated");
+                        }
+                        Err(e) => tracing::error!(%area, "cannot invalidate tiles: {e}"),
+                    }
+                }
                 Err(RecvError::Lagged(missed)) => {
                     // Which areas changed is lost: nothing in memory can be trusted. Stored
                     // tiles over the missed areas may survive until their data changes again.
@@ -27,6 +32,7 @@ pub fn subscribe(source: &dyn BuildingSource, tiles: Arc<TileCache>) {
                         "missed data-change announcements; memory cache dropped"
                     );
                     tiles.invalidate_memory();
+                    priors.invalidate_all();
                 }
                 Err(RecvError::Closed) => break,
             }

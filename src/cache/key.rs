@@ -83,16 +83,21 @@ pub enum RoofSource {
     /// digest of the predictions the tile's buildings have (so a new prediction changes the key of
     /// exactly the tiles holding its building).
     Classified { model: u64, predictions: u64 },
+    /// Tags, and for buildings without one the roof prior's predictions: a digest of the priors
+    /// used (each names its training data and settings).
+    Inferred { priors: u64 },
 }
 
 impl RoofSource {
-    /// The name stored with the tile: `osm`, or `classified:<model>:<predictions>` in hex.
+    /// The name stored with the tile: `osm`, `classified:<model>:<predictions>` or
+    /// `inferred:<priors>`, in hex.
     pub fn name(self) -> String {
         match self {
             RoofSource::OsmTags => "osm".to_owned(),
             RoofSource::Classified { model, predictions } => {
                 format!("classified:{model:016x}:{predictions:016x}")
             }
+            RoofSource::Inferred { priors } => format!("inferred:{priors:016x}"),
         }
     }
 }
@@ -173,5 +178,9 @@ mod tests {
             "classified:00000000000000ab:0000000000000010"
         );
         assert_eq!(RoofSource::OsmTags.name(), "osm");
+        assert_eq!(
+            RoofSource::Inferred { priors: 0x2a }.name(),
+            "inferred:000000000000002a"
+        );
     }
 }

@@ -58,7 +58,7 @@ pub async fn run(state: &AppState, args: &ExportArgs) -> anyhow::Result<ExportSu
     // The content files, then the files that make the tree whole (written last).
     let (content, last): (Vec<Content>, Vec<Finishing>) = match args.format {
         ExportFormat::Tiles3d => {
-            let regions = pipeline::tile_regions(state, bbox)
+            let regions = pipeline::tile_regions(state, bbox, false)
                 .await
                 .map_err(app_error)?;
             // Every level has content: the leaves in full, the coarser levels simplified.
@@ -77,7 +77,9 @@ pub async fn run(state: &AppState, args: &ExportArgs) -> anyhow::Result<ExportSu
             let tileset = tileset_json(bbox, &regions, tiling, "", "");
             let mut last = Vec::new();
             if tiling == Tiling::Implicit {
-                let subtree = pipeline::subtree(state, bbox).await.map_err(app_error)?;
+                let subtree = pipeline::subtree(state, bbox, false)
+                    .await
+                    .map_err(app_error)?;
                 last.push(("subtrees/0/0/0.subtree".to_owned(), subtree.to_vec()));
             }
             last.push((

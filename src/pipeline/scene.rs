@@ -143,6 +143,7 @@ async fn generate_within(
             osm: buildings.origin,
             groups: request.groups.len(),
             chosen_roofs: output.chosen_roofs,
+            inferred_roofs: output.inferred_roofs,
         };
         Ok(Generated {
             glb: Bytes::from(output.glb.bytes),

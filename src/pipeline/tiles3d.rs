@@ -15,17 +15,21 @@ use std::sync::Arc;
 /// The binary subtree at the root of the tree over `root` (the tree's only one): every tile
 /// exists, every leaf has content (ground where it holds no building), and each tile's region
 /// is its tile metadata.
-pub async fn subtree(state: &AppState, root: GeoBbox) -> Result<Bytes, AppError> {
-    let regions = tile_regions(state, root).await?;
+pub async fn subtree(state: &AppState, root: GeoBbox, pitched: bool) -> Result<Bytes, AppError> {
+    let regions = tile_regions(state, root, pitched).await?;
     Ok(Bytes::from(root_subtree(&regions)))
 }
 
 /// The region of every tile of the tree over `root`, measured on its content (kept per region,
-/// as measuring generates the whole tree). With a roof classifier, untagged roofs may become
-/// gabled or hipped in `roofs=classified` content: the regions hold those roofs too.
-pub async fn tile_regions(state: &AppState, root: GeoBbox) -> Result<Arc<TileRegions>, AppError> {
-    let classified = state.classifier.is_some();
-    let key = (root.to_string(), classified);
+/// as measuring generates the whole tree). With `pitched` (content with `roofs=classified` or
+/// `roofs=inferred`), untagged roofs may become gabled or hipped: the regions hold those roofs
+/// too.
+pub async fn tile_regions(
+    state: &AppState,
+    root: GeoBbox,
+    pitched: bool,
+) -> Result<Arc<TileRegions>, AppError> {
+    let key = (root.to_string(), pitched);
     state
         .tiles
         .regions
@@ -38,7 +42,7 @@ pub async fn tile_regions(state: &AppState, root: GeoBbox) -> Result<Arc<TileReg
                     roof_method: state.roof_method,
                 };
                 run_blocking(state, move || {
-                    let variants = if classified {
+                    let variants = if pitched {
                         roof_variants(&buildings.set)
                     } else {
                         Vec::new()

@@ -2,11 +2,11 @@
 //! statistics as JSON).
 
 use super::params::{BboxQuery, EncodingParam, HeightBaseParam, mesh_options, parse_bbox};
-use super::roofs::{generate_with_roofs, scene_response};
+use super::roofs::{ChosenRoofs, generate_with_roofs, scene_response};
 use super::scene_stats::SceneStats;
 use super::schemas::GlbBytes;
 use crate::error::{AppError, ErrorBody};
-use crate::pipeline::{Generated, MeshOptions, RoofFigures, RoofsParam};
+use crate::pipeline::{Generated, MeshOptions, RoofsParam};
 use crate::state::AppState;
 use axum::Json;
 use axum::extract::rejection::QueryRejection;
@@ -95,7 +95,7 @@ pub async fn scene(
     Ok(match format {
         SceneFormat::Glb => scene_response(&request_headers, generated, SCENE_CACHE_CONTROL),
         SceneFormat::Json => {
-            let mut response = Json(SceneStats::of(&generated.0, generated.1)).into_response();
+            let mut response = Json(SceneStats::of(&generated.0, &generated.1)).into_response();
             // The same URL answers GLB or JSON by the Accept header: caches must key on it.
             response
                 .headers_mut()
@@ -120,7 +120,7 @@ async fn generate_box(
     bbox: Option<&str>,
     roofs: Option<RoofsParam>,
     mesh: MeshOptions,
-) -> Result<(Generated, Option<RoofFigures>), AppError> {
+) -> Result<(Generated, ChosenRoofs), AppError> {
     let bbox = parse_bbox(bbox, &state.limits)?;
     generate_with_roofs(
         state,

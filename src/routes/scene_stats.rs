@@ -1,9 +1,9 @@
 //! `GET /scene/stats?bbox=`: what went into the scene of an area, as JSON.
 
 use super::params::{BboxQuery, heights_for, parse_bbox};
-use super::roofs::generate_with_roofs;
+use super::roofs::{ChosenRoofs, generate_with_roofs};
 use crate::error::{AppError, ErrorBody};
-use crate::pipeline::{Generated, MeshOptions, RoofFigures, RoofsParam};
+use crate::pipeline::{Generated, InferredFigures, MeshOptions, RoofFigures, RoofsParam};
 use crate::state::AppState;
 use axum::Json;
 use axum::extract::rejection::QueryRejection;
@@ -21,11 +21,15 @@ pub struct SceneStats {
     /// The paper's figures: time, vertices, triangles, bytes, and where roof shapes came from.
     #[serde(flatten)]
     pub figures: PaperFigures,
-    /// `osm` or `classified`.
+    /// `osm`, `classified` or `inferred`.
     pub roofs: RoofsParam,
     /// With `roofs=classified`: untagged buildings classified, below the threshold, and still
     /// without a prediction.
     pub classified_roofs: Option<RoofFigures>,
+    /// With `roofs=inferred`: untagged buildings given a shape by the roof prior, below its
+    /// threshold, and not inferred (the prior abstains), with each prior's cross-validated
+    /// report.
+    pub inferred_roofs: Option<InferredFigures>,
     /// With `roofs=classified`: the same scene without the classifier (the paper's Table 2
     /// columns side by side).
     pub without_classifier: Option<PaperFigures>,
@@ -52,6 +56,8 @@ pub struct PaperFigures {
     pub roof_shape_from_tag_percent: f64,
     /// Share of roof shapes from the roof classifier, percent (0 with `roofs=osm`).
     pub roof_shape_from_classifier_percent: f64,
+    /// Share of roof shapes inferred by the roof prior, percent (0 unless `roofs=inferred`).
+    pub roof_shape_inferred_percent: f64,
     /// Share of roofs given the default (flat) shape, percent.
     pub roof_shape_default_percent: f64,
 }
@@ -78,10 +84,11 @@ pub struct BuildingFigures {
     pub area_lost_ids: Vec<AreaLost>,
     /// Generated roofs per shape.
     pub roof_shapes: BTreeMap<String, usize>,
-    /// Roof shapes from a `roof:shape` tag, from the classifier, by default (no tag: flat), and
-    /// tags naming a shape citymesh does not draw (rendered flat).
+    /// Roof shapes from a `roof:shape` tag, from the classifier, inferred by the roof prior, by
+    /// default (no tag: flat), and tags naming a shape citymesh does not draw (rendered flat).
     pub roof_shape_from_tag: usize,
     pub roof_shape_from_classifier: usize,
+    pub roof_shape_inferred: usize,
     pub roof_shape_default: usize,
     pub roof_shape_unsupported: usize,
     /// Total heights from `height`, from `building:levels`, and from the building type's default.
@@ -159,8 +166,8 @@ pub async fn scene_stats(
         encoding: Encoding::Plain,
         heights: heights_for(&state, query.height_base),
     };
-    let (generated, figures) = generate_with_roofs(&state, area, roofs, mesh).await?;
-    let mut stats = SceneStats::of(&generated, figures);
+    let (generated, chosen) = generate_with_roofs(&state, area, roofs, mesh).await?;
+    let mut stats = SceneStats::of(&generated, &chosen);
     if roofs == RoofsParam::Classified {
         let (plain, _) = generate_with_roofs(&state, area, RoofsParam::Osm, mesh).await?;
         stats.without_classifier = Some(PaperFigures::of(&plain));
@@ -169,11 +176,12 @@ pub async fn scene_stats(
     Ok(Json(stats))
 }
 
-/// Roofs from tags, from the classifier and by default (the core counts classified roofs as
-/// tagged: they reach it as tags).
-fn roof_sources(generated: &Generated) -> [f64; 3] {
+/// Roofs from tags, from the classifier, inferred and by default (the core counts chosen roofs
+/// as tagged: they reach it as tags).
+fn roof_sources(generated: &Generated) -> [f64; 4] {
     let b = &generated.stats.buildings;
     let chosen = generated.stats.chosen_roofs;
+    let inferred = generated.stats.inferred_roofs;
     let share = |n: usize| {
         if b.roofs() == 0 {
             0.0
@@ -182,8 +190,9 @@ fn roof_sources(generated: &Generated) -> [f64; 3] {
         }
     };
     [
-        share(b.shape_from_tag.saturating_sub(chosen)),
+        share(b.shape_from_tag.saturating_sub(chosen + inferred)),
         share(chosen),
+        share(inferred),
         share(b.shape_default),
     ]
 }
@@ -191,7 +200,7 @@ fn roof_sources(generated: &Generated) -> [f64; 3] {
 impl PaperFigures {
     pub fn of(generated: &Generated) -> Self {
         let s = &generated.stats;
-        let [tag, classifier, default] = roof_sources(generated);
+        let [tag, classifier, inferred, default] = roof_sources(generated);
         Self {
             generation_ms: s.generation_ms,
             vertices: s.vertices,
@@ -200,6 +209,7 @@ impl PaperFigures {
             flat_roof_percent: s.buildings.flat_roof_percent(),
             roof_shape_from_tag_percent: tag,
             roof_shape_from_classifier_percent: classifier,
+            roof_shape_inferred_percent: inferred,
             roof_shape_default_percent: default,
         }
     }
@@ -207,8 +217,9 @@ impl PaperFigures {
 
 impl BuildingFigures {
     /// The figures of a scene's buildings, `chosen_roofs` of whose roofs the classifier chose
-    /// (the core counts them as tagged). `citymesh scene --stats` writes the same.
-    pub fn of(b: &BuildingStats, chosen_roofs: usize) -> Self {
+    /// and `inferred_roofs` the roof prior (the core counts both as tagged). `citymesh scene
+    /// --stats` writes the same.
+    pub fn of(b: &BuildingStats, chosen_roofs: usize, inferred_roofs: usize) -> Self {
         BuildingFigures {
             generated: b.generated,
             parts: b.parts,
@@ -254,8 +265,11 @@ impl BuildingFigures {
                 .iter()
                 .map(|(k, v)| ((*k).to_owned(), *v))
                 .collect(),
-            roof_shape_from_tag: b.shape_from_tag.saturating_sub(chosen_roofs),
+            roof_shape_from_tag: b
+                .shape_from_tag
+                .saturating_sub(chosen_roofs + inferred_roofs),
             roof_shape_from_classifier: chosen_roofs,
+            roof_shape_inferred: inferred_roofs,
             roof_shape_default: b.shape_default,
             roof_shape_unsupported: b.shape_unsupported,
             height_from_tag: b.height_from_tag,
@@ -269,21 +283,23 @@ impl BuildingFigures {
 }
 
 impl SceneStats {
-    /// The figures of a generated scene, and of its classified roofs.
-    pub fn of(generated: &Generated, classified: Option<RoofFigures>) -> Self {
+    /// The figures of a generated scene, and of its chosen roofs.
+    pub fn of(generated: &Generated, chosen: &ChosenRoofs) -> Self {
         let s = &generated.stats;
         let b = &s.buildings;
+        let (roofs, classified, inferred) = match chosen {
+            ChosenRoofs::TagsOnly => (RoofsParam::Osm, None, None),
+            ChosenRoofs::Classified(f) => (RoofsParam::Classified, Some(*f), None),
+            ChosenRoofs::Inferred(f) => (RoofsParam::Inferred, None, Some(f.clone())),
+        };
         SceneStats {
             figures: PaperFigures::of(generated),
-            roofs: if classified.is_some() {
-                RoofsParam::Classified
-            } else {
-                RoofsParam::Osm
-            },
+            roofs,
             classified_roofs: classified,
+            inferred_roofs: inferred,
             without_classifier: None,
             imagery_attribution: None,
-            buildings: BuildingFigures::of(b, s.chosen_roofs),
+            buildings: BuildingFigures::of(b, s.chosen_roofs, s.inferred_roofs),
             ground: GroundFigures {
                 cells: s.ground.cells,
                 void_cells: s.ground.void_cells,

@@ -92,15 +92,8 @@ pub async fn tile_glb(
                 TILE_CACHE_CONTROL,
             ))
         }
-        RoofsParam::Classified => {
-            cached_tile(
-                &state,
-                request_headers,
-                key,
-                RoofsParam::Classified,
-                TILE_CACHE_CONTROL,
-            )
-            .await
+        roofs @ (RoofsParam::Classified | RoofsParam::Inferred) => {
+            cached_tile(&state, request_headers, key, roofs, TILE_CACHE_CONTROL).await
         }
     }
 }

@@ -68,8 +68,10 @@ impl From<TilingParam> for Tiling {
 /// The query a content URI carries: what the tileset was asked for beyond the defaults.
 fn content_query(query: &TilesetQuery) -> String {
     let mut parts = Vec::new();
-    if query.roofs == Some(RoofsParam::Classified) {
-        parts.push("roofs=classified".to_owned());
+    match query.roofs.unwrap_or_default() {
+        RoofsParam::Osm => {}
+        RoofsParam::Classified => parts.push("roofs=classified".to_owned()),
+        RoofsParam::Inferred => parts.push("roofs=inferred".to_owned()),
     }
     if let Some(e) = query.encoding
         && Encoding::from(e) != CONTENT_ENCODING
@@ -163,7 +165,8 @@ pub async fn tileset(
 ) -> Result<Response, AppError> {
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
     let root = root_for(&state, query.bbox.as_deref())?;
-    let regions = pipeline::tile_regions(&state, root).await?;
+    let pitched = query.roofs.unwrap_or_default() != RoofsParam::Osm;
+    let regions = pipeline::tile_regions(&state, root, pitched).await?;
     let json = tileset_json(
         root,
         &regions,
@@ -179,7 +182,8 @@ pub async fn tileset(
     params(("bbox" = String, Path, description = "The tree's region, minLon,minLat,maxLon,maxLat", example = "8.400,49.010,8.409,49.017"),
            ("level" = u8, Path, description = "Level of the subtree's root (only 0 exists)", minimum = 0, maximum = 30),
            ("x" = u32, Path, description = "Column at that level, from the west", minimum = 0),
-           ("y" = u32, Path, description = "Row at that level, from the south", minimum = 0)),
+           ("y" = u32, Path, description = "Row at that level, from the south", minimum = 0),
+           TileQuery),
     responses(
         (status = 200, description = "The subtree", content_type = "application/octet-stream", body = inline(SubtreeBytes)),
         (status = 400, description = "The region or a coordinate is malformed, or the region too large", body = ErrorBody),
@@ -192,7 +196,9 @@ pub async fn tileset(
 pub async fn subtree(
     State(state): State<AppState>,
     path: Result<Path<(String, String, String, String)>, PathRejection>,
+    query: Result<Query<TileQuery>, QueryRejection>,
 ) -> Result<Response, AppError> {
+    let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
     let (root, t) = implicit_request(&state, path, ".subtree")?;
     if (t.level, t.x, t.y) != (0, 0, 0) {
         return Err(AppError::not_found(
@@ -200,7 +206,9 @@ pub async fn subtree(
             "this tree has one subtree, at 0/0/0",
         ));
     }
-    let bytes = pipeline::subtree(&state, root).await?;
+    // Regions hold pitched variants of untagged roofs for content with chosen roofs.
+    let pitched = query.roofs.unwrap_or_default() != RoofsParam::Osm;
+    let bytes = pipeline::subtree(&state, root, pitched).await?;
     Ok((
         [
             (header::CONTENT_TYPE, "application/octet-stream"),

@@ -7,7 +7,7 @@ mod parse_errors;
 
 pub use connections::ConnectionLimits;
 
-use crate::cache::{MemoryBudget, TileCache, TileStore, invalidation};
+use crate::cache::{MemoryBudget, RoofPriors, TileCache, TileStore, invalidation};
 use crate::classifier::RoofClassifier as _;
 use crate::cli::ServeArgs;
 use crate::db;
@@ -153,7 +153,8 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         data_version,
         metrics.clone(),
     ));
-    invalidation::subscribe(source.as_ref(), tiles.clone());
+    let priors = Arc::new(RoofPriors::new(memory.roof_priors));
+    invalidation::subscribe(source.as_ref(), tiles.clone(), priors.clone());
     let slots = args
         .max_generations
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(2, std::num::NonZero::get))
@@ -211,6 +212,7 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
     Ok(AppState::new(ServerState {
         classifier,
         roofs,
+        priors,
         cors_origins: Arc::new(args.cors_origin.clone()),
         memory_budget: memory,
         height_base,

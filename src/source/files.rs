@@ -1,6 +1,6 @@
 //! The `--osm` files (or the procedural demo city), read once at start-up and held in memory.
 
-use super::{AreaBuildings, BuildingSource, DataChanged, SourceError, skips_near};
+use super::{AreaBuildings, BuildingSource, DataChanged, PriorScope, SourceError, skips_near};
 use citymesh_core::building::set::BuildingSet;
 use citymesh_core::geo::GeoBbox;
 use citymesh_core::osm::{BuildingRecord, OsmError, Repaired, Skipped, read_buildings};
@@ -81,6 +81,17 @@ impl BuildingSource for FileSource {
 
     fn extent(&self) -> Option<GeoBbox> {
         self.set.extent()
+    }
+
+    fn prior_scope(&self, _lon: f64, _lat: f64) -> PriorScope {
+        PriorScope::Everything
+    }
+
+    fn prior_records<'a>(
+        &'a self,
+        _scope: PriorScope,
+    ) -> BoxFuture<'a, Result<Vec<Arc<BuildingRecord>>, SourceError>> {
+        Box::pin(async move { Ok(self.set.records().to_vec()) })
     }
 }
 

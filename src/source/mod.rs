@@ -18,8 +18,8 @@ pub use error::SourceError;
 pub use files::{FileSource, OsmFileError, load_osm_files, read_osm_file};
 
 use citymesh_core::building::set::BuildingSet;
-use citymesh_core::geo::GeoBbox;
-use citymesh_core::osm::{Repaired, Skipped};
+use citymesh_core::geo::{GeoBbox, TileCoord};
+use citymesh_core::osm::{BuildingRecord, Repaired, Skipped};
 use futures_util::future::BoxFuture;
 use std::sync::Arc;
 use tokio::sync::broadcast;
@@ -73,6 +73,39 @@ pub struct DataChanged {
     pub area: GeoBbox,
 }
 
+/// The area whose tagged buildings teach the roof prior of a building (docs/method.md section
+/// 14): all of the source's buildings (files), or those of the data tile holding the building's
+/// representative point.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum PriorScope {
+    Everything,
+    DataTile(TileCoord),
+}
+
+impl PriorScope {
+    /// `all`, or the data tile as `z/x/y`.
+    pub fn name(&self) -> String {
+        match self {
+            PriorScope::Everything => "all".to_owned(),
+            PriorScope::DataTile(t) => format!("{}/{}/{}", t.z, t.x, t.y),
+        }
+    }
+
+    /// Whether data changed over `area` changes this scope's buildings.
+    pub fn touches(&self, area: &GeoBbox) -> bool {
+        match self {
+            PriorScope::Everything => true,
+            PriorScope::DataTile(t) => {
+                let b = t.bounds();
+                b.min_lon() <= area.max_lon()
+                    && b.max_lon() >= area.min_lon()
+                    && b.min_lat() <= area.max_lat()
+                    && b.max_lat() >= area.min_lat()
+            }
+        }
+    }
+}
+
 /// A source of buildings.
 pub trait BuildingSource: Send + Sync {
     /// The buildings an area needs: at least every building group that touches `bbox`, whole.
@@ -93,6 +126,16 @@ pub trait BuildingSource: Send + Sync {
 
     /// The extent of all buildings when the source knows it up front (files), else `None`.
     fn extent(&self) -> Option<GeoBbox>;
+
+    /// Which area's tags teach the roof prior of a building whose outline's first node is at
+    /// (`lon`, `lat`).
+    fn prior_scope(&self, lon: f64, lat: f64) -> PriorScope;
+
+    /// The buildings of a prior's area (which may ask upstream, within one request's budget).
+    fn prior_records<'a>(
+        &'a self,
+        scope: PriorScope,
+    ) -> BoxFuture<'a, Result<Vec<Arc<BuildingRecord>>, SourceError>>;
 
     /// Bytes its memory caches weigh now, by cache (none for files, held whole).
     fn memory_use<'a>(&'a self) -> BoxFuture<'a, Vec<(&'static str, u64)>> {

@@ -11,8 +11,8 @@ mod store;
 pub use store::{DataOrigin, OsmTileStore, StoredDataTile, content_hash};
 
 use super::{
-    AreaBuildings, BuildingSource, CHANGE_CAPACITY, DataChanged, SourceError, short_list,
-    skips_near,
+    AreaBuildings, BuildingSource, CHANGE_CAPACITY, DataChanged, PriorScope, SourceError,
+    short_list, skips_near,
 };
 use crate::cache::budget::weight;
 use crate::metrics::{Metrics, UpstreamLabels};
@@ -390,5 +390,24 @@ impl BuildingSource for DataTileSource {
 
     fn extent(&self) -> Option<GeoBbox> {
         None
+    }
+
+    fn prior_scope(&self, lon: f64, lat: f64) -> PriorScope {
+        PriorScope::DataTile(TileCoord::containing(data_tile::DATA_ZOOM, lon, lat))
+    }
+
+    fn prior_records<'a>(
+        &'a self,
+        scope: PriorScope,
+    ) -> BoxFuture<'a, Result<Vec<Arc<BuildingRecord>>, SourceError>> {
+        Box::pin(async move {
+            let PriorScope::DataTile(t) = scope else {
+                return Err(SourceError::Unreadable(
+                    "data tiles have no prior over everything".to_owned(),
+                ));
+            };
+            let budget = AtomicUsize::new(self.calls_per_request);
+            Ok(self.data_tile(t, &budget).await?.records.clone())
+        })
     }
 }

@@ -13,6 +13,10 @@ use crate::osm::{BuildingRecord, OsmId, Tags};
 /// [`crate::scene::RoofChoice`] sets it; a value in the data itself is dropped, so it cannot
 /// pose as a prediction.
 pub const CHOSEN_ROOF_PROBABILITY: &str = "citymesh:roof_probability";
+/// Beside [`CHOSEN_ROOF_PROBABILITY`]: who chose the shape, when not the classifier.
+pub const CHOSEN_ROOF_ORIGIN: &str = "citymesh:roof_origin";
+/// The [`CHOSEN_ROOF_ORIGIN`] value of a shape the roof prior inferred from the area's tags.
+pub const INFERRED: &str = "inferred";
 
 /// Where a building's roof shape came from.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -21,6 +25,8 @@ pub enum RoofOrigin {
     Tag,
     /// The roof classifier, with the probability of its answer.
     Classifier { probability: f32 },
+    /// The roof prior learned from the area's tags, with the probability of its answer.
+    Inferred { probability: f32 },
     /// No usable `roof:shape` (none, or one citymesh does not draw): the default, flat.
     Default,
 }
@@ -31,6 +37,7 @@ impl RoofOrigin {
         match self {
             RoofOrigin::Tag => "tag",
             RoofOrigin::Classifier { .. } => "classifier",
+            RoofOrigin::Inferred { .. } => "inferred",
             RoofOrigin::Default => "default",
         }
     }
@@ -68,6 +75,12 @@ impl BuildingFeature {
         };
         let roof_origin = match params.shape_source {
             ShapeSource::Tag => match chosen_probability(&record.tags) {
+                Some(probability)
+                    if record.tags.get(CHOSEN_ROOF_ORIGIN).map(String::as_str)
+                        == Some(INFERRED) =>
+                {
+                    RoofOrigin::Inferred { probability }
+                }
                 Some(probability) => RoofOrigin::Classifier { probability },
                 None => RoofOrigin::Tag,
             },
@@ -151,12 +164,12 @@ pub static BUILDING_CLASS: ClassDef = ClassDef {
         property(
             "roof_source",
             PropertyType::String,
-            "Where the roof shape came from: tag, classifier or default",
+            "Where the roof shape came from: tag, classifier, inferred (the prior learned from the area's tags) or default",
         ),
         property(
             "roof_probability",
             PropertyType::Float32 { no_data: NONE },
-            "The roof classifier's probability for its shape (-1: not classified)",
+            "The probability the classifier or the prior gave its shape (-1: from a tag or the default)",
         ),
         property(
             "wall_colour",
@@ -201,7 +214,9 @@ pub fn property_table(features: &[BuildingFeature]) -> PropertyTable {
             strings(&|f| f.roof_shape.into()),
             strings(&|f| f.roof_origin.name().into()),
             floats(&|f| match f.roof_origin {
-                RoofOrigin::Classifier { probability } => probability,
+                RoofOrigin::Classifier { probability } | RoofOrigin::Inferred { probability } => {
+                    probability
+                }
                 _ => -1.0,
             }),
             strings(&|f| f.wall_colour.hex()),

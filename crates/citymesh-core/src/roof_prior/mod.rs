@@ -248,6 +248,24 @@ impl RoofPrior {
     }
 }
 
+/// The roof classifier's probabilities for a building together with the prior's: their
+/// normalised product (Bayes' rule). The classifier learned from classes in equal shares, so its
+/// probabilities stand for how well the image fits each class, and the prior's say how common
+/// each class is for such a building in the area. `image` alone when the product vanishes.
+pub fn combine(image: [f32; 3], prior: [f32; 3]) -> [f32; 3] {
+    let product = [
+        image[0] * prior[0],
+        image[1] * prior[1],
+        image[2] * prior[2],
+    ];
+    let sum: f32 = product.iter().sum();
+    if sum.is_finite() && sum > 1e-12 {
+        product.map(|p| p / sum)
+    } else {
+        image
+    }
+}
+
 /// The digest of what a prior learned from and how.
 fn identity(examples: &[Example], options: &BoostOptions) -> String {
     let mut h = xxhash_rust::xxh3::Xxh3::new();

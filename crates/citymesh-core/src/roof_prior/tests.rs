@@ -175,3 +175,16 @@ fn parts_and_compound_roofs_teach_nothing() {
         own_features(&pyramidal, &o).len() + neighbour_feature_names().len()
     });
 }
+
+#[test]
+fn combining_multiplies_and_normalises() {
+    let c = combine([0.5, 0.3, 0.2], [0.2, 0.6, 0.2]);
+    // 0.10, 0.18, 0.04 over 0.32.
+    let want = [0.3125, 0.5625, 0.125];
+    for (a, b) in c.iter().zip(want) {
+        assert!((a - b).abs() < 1e-6, "{c:?}");
+    }
+    assert_eq!(combine([0.5, 0.5, 0.0], [0.0, 0.0, 1.0]), [0.5, 0.5, 0.0]);
+    let uniform = combine([0.7, 0.2, 0.1], [1.0 / 3.0; 3]);
+    assert!((uniform[0] - 0.7).abs() < 1e-6);
+}

@@ -9,7 +9,7 @@ mod roof_choice;
 
 pub use level_of_detail::{LevelOfDetail, Simplified};
 pub use request::{SceneArea, SceneOutput, SceneRequest};
-pub use roof_choice::RoofChoice;
+pub use roof_choice::{Chooser, RoofChoice};
 
 use crate::building::feature::property_table;
 use crate::building::{

@@ -121,9 +121,11 @@ pub struct SceneOutput {
     pub glb: EncodedGlb,
     pub ground: GroundReport,
     pub buildings: BuildingStats,
-    /// Generated records whose roof shape came from the [`RoofChoice`] (counted by the core's
-    /// statistics as tagged).
+    /// Generated records whose roof shape the classifier chose through the [`RoofChoice`]
+    /// (counted by the core's statistics as tagged).
     pub chosen_roofs: usize,
+    /// Generated records whose roof shape the roof prior chose (also counted as tagged).
+    pub inferred_roofs: usize,
 }
 
 impl<'a> SceneRequest<'a> {
@@ -287,11 +289,18 @@ impl<'a> SceneRequest<'a> {
             .iter()
             .filter(|f| matches!(f.roof_origin, RoofOrigin::Classifier { .. }))
             .count();
+        let inferred_roofs = scene
+            .buildings
+            .features
+            .iter()
+            .filter(|f| matches!(f.roof_origin, RoofOrigin::Inferred { .. }))
+            .count();
         SceneOutput {
             glb: scene.encode(placement, encoding),
             ground: scene.ground,
             buildings: scene.buildings,
             chosen_roofs,
+            inferred_roofs,
         }
     }
 }

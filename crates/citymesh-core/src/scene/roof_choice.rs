@@ -1,18 +1,28 @@
 //! Roof shapes chosen outside the data: for buildings whose OSM data has no `roof:shape`, a shape
-//! decided elsewhere (classified from imagery, docs/method.md section 11) stands in for the tag.
-//! A tag always wins: a chosen shape never replaces one the data names.
+//! decided elsewhere (classified from imagery, docs/method.md section 11, or inferred from the
+//! area's tags, section 14) stands in for the tag. A tag always wins: a chosen shape never
+//! replaces one the data names.
 
-use crate::building::feature::CHOSEN_ROOF_PROBABILITY;
+use crate::building::feature::{CHOSEN_ROOF_ORIGIN, CHOSEN_ROOF_PROBABILITY, INFERRED};
 use crate::building::roof::RoofShape;
 use crate::osm::{BuildingRecord, OsmId};
 use std::borrow::Cow;
 use std::collections::HashMap;
 
-/// Shapes for records without a `roof:shape` tag, by OSM id, each with the probability the
-/// classifier gave it.
+/// Who chose a shape.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Chooser {
+    /// The roof classifier, from imagery (with the prior, where one applies).
+    Classifier,
+    /// The roof prior learned from the area's tags alone.
+    Prior,
+}
+
+/// Shapes for records without a `roof:shape` tag, by OSM id, each with the probability its
+/// chooser gave it.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct RoofChoice {
-    by_id: HashMap<OsmId, (RoofShape, f32)>,
+    by_id: HashMap<OsmId, (RoofShape, f32, Chooser)>,
 }
 
 impl RoofChoice {
@@ -20,12 +30,19 @@ impl RoofChoice {
         Self::default()
     }
 
+    /// A shape the classifier chose.
     pub fn insert(&mut self, id: OsmId, shape: RoofShape, probability: f32) {
-        self.by_id.insert(id, (shape, probability));
+        self.by_id
+            .insert(id, (shape, probability, Chooser::Classifier));
+    }
+
+    /// A shape chosen by `chooser`.
+    pub fn insert_by(&mut self, id: OsmId, shape: RoofShape, probability: f32, chooser: Chooser) {
+        self.by_id.insert(id, (shape, probability, chooser));
     }
 
     pub fn get(&self, id: &OsmId) -> Option<RoofShape> {
-        self.by_id.get(id).map(|&(shape, _)| shape)
+        self.by_id.get(id).map(|&(shape, _, _)| shape)
     }
 
     pub fn len(&self) -> usize {
@@ -41,7 +58,7 @@ impl RoofChoice {
     /// [`CHOSEN_ROOF_PROBABILITY`]), else itself.
     pub fn apply<'a>(&self, record: Cow<'a, BuildingRecord>) -> Cow<'a, BuildingRecord> {
         match self.by_id.get(&record.id) {
-            Some(&(shape, probability)) if !record.tags.contains_key("roof:shape") => {
+            Some(&(shape, probability, chooser)) if !record.tags.contains_key("roof:shape") => {
                 let mut patched = record.into_owned();
                 patched
                     .tags
@@ -50,18 +67,26 @@ impl RoofChoice {
                     CHOSEN_ROOF_PROBABILITY.to_owned(),
                     format!("{probability:.4}"),
                 );
+                if chooser == Chooser::Prior {
+                    patched
+                        .tags
+                        .insert(CHOSEN_ROOF_ORIGIN.to_owned(), INFERRED.to_owned());
+                }
                 Cow::Owned(patched)
             }
             _ => record,
         }
     }
 
-    /// `record` without a [`CHOSEN_ROOF_PROBABILITY`] tag of its own (data cannot pose as a
-    /// prediction): itself, or a copy without it.
+    /// `record` without a [`CHOSEN_ROOF_PROBABILITY`] or [`CHOSEN_ROOF_ORIGIN`] tag of its own
+    /// (data cannot pose as a prediction): itself, or a copy without them.
     pub fn unmarked(record: &BuildingRecord) -> Cow<'_, BuildingRecord> {
-        if record.tags.contains_key(CHOSEN_ROOF_PROBABILITY) {
+        if record.tags.contains_key(CHOSEN_ROOF_PROBABILITY)
+            || record.tags.contains_key(CHOSEN_ROOF_ORIGIN)
+        {
             let mut clean = record.clone();
             clean.tags.remove(CHOSEN_ROOF_PROBABILITY);
+            clean.tags.remove(CHOSEN_ROOF_ORIGIN);
             Cow::Owned(clean)
         } else {
             Cow::Borrowed(record)

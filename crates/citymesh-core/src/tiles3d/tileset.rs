@@ -117,7 +117,7 @@ pub enum Tiling {
 
 /// The tileset of the tree over `root` whose tiles' regions and errors are `regions`. `prefix`
 /// is put before the content and subtree paths (relative URIs); `query`, when not empty, is
-/// put after each content URI. It declares the schema of the buildings' property tables in its
+/// put after each content and subtree URI. It declares the schema of the buildings' property tables in its
 /// content.
 pub fn tileset_json(
     root: GeoBbox,
@@ -161,7 +161,7 @@ pub fn tileset_json(
                     "subdivisionScheme": "QUADTREE",
                     "availableLevels": layout.available_levels(),
                     "subtreeLevels": layout.available_levels(),
-                    "subtrees": {"uri": format!("{prefix}subtrees/{{level}}/{{x}}/{{y}}.subtree")}
+                    "subtrees": {"uri": format!("{prefix}subtrees/{{level}}/{{x}}/{{y}}.subtree{query}")}
                 }
             }),
         ),
