@@ -406,6 +406,38 @@ try {
     await v.page.close();
   });
 
+  await check('viewer shows Kirchfeld with roofs=osm and roofs=inferred side by side', async () => {
+    // The same view twice: untagged roofs flat (the paper's default), then inferred by the roof
+    // prior from Kirchfeld's tagged buildings; the two screenshots side by side in one PNG.
+    const view = `lon=8.3940&lat=49.0480&zoom=17&radius=1&camera=-120,160,220`;
+    const shots = [];
+    for (const roofs of ['osm', 'inferred']) {
+      const v = await open(`${karlsruhe.url}/?${view}&roofs=${roofs}`,
+        'window.citymeshViewer && window.citymeshViewer.ready && window.citymeshViewer.stats');
+      const s = await v.page.evaluate(() => window.citymeshViewer);
+      if (v.problems.length) throw new Error(v.problems.join('\n'));
+      if (s.tilesLoaded !== s.tilesWanted || s.tilesFailed) throw new Error(`tiles: ${JSON.stringify(s)}`);
+      if (s.roofs !== roofs) throw new Error(`asked ${roofs}, shown ${s.roofs}`);
+      if (roofs === 'inferred') {
+        if (!v.glbs.length || !v.glbs.every((u) => u.includes('roofs=inferred'))) throw new Error(`tiles without roofs=inferred: ${v.glbs[0]}`);
+        if (!(s.stats.roof_shape_inferred_percent > 20)) throw new Error(`inferred: ${JSON.stringify(s.stats)}`);
+        const panel = await v.page.textContent('#stats');
+        if (!panel.includes('roof shapes inferred')) throw new Error(`panel: ${panel}`);
+      }
+      shots.push({ png: PNG.sync.read(await v.page.screenshot({ path: `${artifacts}/viewer-roofs-${roofs}.png` })), stats: s.stats });
+      await v.page.close();
+    }
+    const [a, b] = shots.map((x) => x.png);
+    const both = new PNG({ width: a.width + b.width, height: Math.max(a.height, b.height) });
+    PNG.bitblt(a, both, 0, 0, a.width, a.height, 0, 0);
+    PNG.bitblt(b, both, 0, 0, b.width, b.height, a.width, 0);
+    await writeFile(`${artifacts}/viewer-roofs-osm-vs-inferred.png`, PNG.sync.write(both));
+    const diff = difference(PNG.sync.write(a), PNG.sync.write(b));
+    if (!(diff > 2)) throw new Error(`the inferred roofs barely change the view: ${diff.toFixed(2)}`);
+    const [osm, inferred] = shots.map((x) => x.stats.flat_roof_percent.toFixed(1));
+    console.log(`  flat roofs ${osm} % -> ${inferred} %; mean difference ${diff.toFixed(1)}; viewer-roofs-osm-vs-inferred.png`);
+  });
+
   await check('viewer shows hipped and gabled roofs over L, T and U outlines (straight skeleton)', async () => {
     // Six buildings in OSM XML around (8.4 E, 49.01 N): L, T and U, hipped in front, gabled
     // behind; wings 6 m wide, 9 m tall, no roof:height.

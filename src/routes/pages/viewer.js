@@ -13,12 +13,13 @@ const lat0 = parseFloat(q.get('lat') ?? d.lat);
 const zoom = parseInt(q.get('zoom') ?? d.zoom, 10);
 const radius = parseInt(q.get('radius') ?? '1', 10);
 const empty = q.has('empty');
-// `?roofs=classified`: roofs from the roof classifier's predictions where OSM has no roof:shape.
-const roofs = q.get('roofs') === 'classified' ? 'classified' : 'osm';
+// `?roofs=classified`: roofs from the roof classifier's predictions where OSM has no roof:shape;
+// `?roofs=inferred`: from the roof prior learned from the area's tagged buildings.
+const roofs = ['classified', 'inferred'].includes(q.get('roofs')) ? q.get('roofs') : 'osm';
 // `?encoding=plain|quantized|meshopt`: how the tiles store vertices (meshopt, the smallest, by
 // default; three.js decodes it with its MeshoptDecoder).
 const encoding = ['plain', 'quantized', 'meshopt'].includes(q.get('encoding')) ? q.get('encoding') : 'meshopt';
-const tileQuery = '?' + new URLSearchParams(roofs === 'classified' ? { roofs, encoding } : { encoding });
+const tileQuery = '?' + new URLSearchParams(roofs !== 'osm' ? { roofs, encoding } : { encoding });
 state.roofs = roofs;
 state.encoding = encoding;
 document.getElementById('where').textContent = `${lon0.toFixed(5)} E, ${lat0.toFixed(5)} N, tiles of zoom ${zoom}`;
@@ -95,6 +96,12 @@ fetch(`/scene/stats?bbox=${lon0 - span},${lat0 - span * 0.6},${lon0 + span},${la
     if (s.classified_roofs) {
       rows.splice(4, 0, ['roof shapes from the classifier', s.roof_shape_from_classifier_percent.toFixed(1) + ' %'],
         ['roofs still pending', s.classified_roofs.pending]);
+    }
+    if (s.inferred_roofs) {
+      const p = s.inferred_roofs.priors;
+      const acc = p.length === 1 && p[0].cross_validated_accuracy !== null
+        ? ` (cross-validated ${(100 * p[0].cross_validated_accuracy).toFixed(1)} %)` : '';
+      rows.splice(4, 0, ['roof shapes inferred from tags nearby', s.roof_shape_inferred_percent.toFixed(1) + ' %' + acc]);
     }
     if (s.imagery_attribution) rows.push(['roofs classified from', s.imagery_attribution]);
     document.getElementById('stats').innerHTML = rows.map(([k, v]) => `<tr><td>${k}</td><td>${v}</td></tr>`).join('');
