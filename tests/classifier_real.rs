@@ -211,7 +211,7 @@ fn atlanta_footprints() -> (Vec<citymesh_core::osm::BuildingRecord>, Vec<String>
 /// The roof prior learned from the `train` footprints alone (no tags, no neighbours: their outline
 /// is all it knows) against the shipped model on `val`, and their product (what
 /// `roofs=classified` does where a prior applies). The prior alone gets 77 of 111 (69 %, against
-/// 47 % for always answering hipped), but it adds nothing to a model that already sees the
+/// 48 % for always answering hipped), but it adds nothing to a model that already sees the
 /// footprint as its mask: the product counts the outline twice and gets 85, three fewer than the
 /// model alone. Where a prior knows more than the outline (tags, neighbours' shapes), the
 /// product gains: `tests/classify_with_prior.rs`.

@@ -71,8 +71,10 @@ pub struct BboxQuery {
     )]
     pub bbox: Option<String>,
     /// Where roof shapes come from: `osm` (tags, else flat; the default, the paper's scene
-    /// without computer vision) or `classified` (tags, and for untagged buildings the roof
-    /// classifier's predictions; see `POST /classify`).
+    /// without computer vision), `classified` (tags, and for untagged buildings the roof
+    /// classifier's predictions, combined with the roof prior's; see `POST /classify`) or
+    /// `inferred` (tags, and for untagged buildings the roof prior learned from the tagged
+    /// buildings around them; no imagery).
     #[param(inline)]
     pub roofs: Option<RoofsParam>,
     /// How the GLB stores vertices: `plain` (the default: f32, no extension), `quantized`
@@ -131,9 +133,11 @@ pub fn heights_for(state: &AppState, asked: Option<HeightBaseParam>) -> HeightBa
 #[derive(Debug, Deserialize, IntoParams)]
 #[into_params(parameter_in = Query)]
 pub struct TileQuery {
-    /// `osm` (tags, else flat; the default, the paper's scene without computer vision) or
-    /// `classified` (tags, and for untagged buildings the roof classifier's predictions: the
-    /// response's `X-Citymesh-Roofs` says how many are still pending; see `POST /classify`).
+    /// `osm` (tags, else flat; the default, the paper's scene without computer vision),
+    /// `classified` (tags, and for untagged buildings the roof classifier's predictions combined
+    /// with the roof prior's: the response's `X-Citymesh-Roofs` says how many are still pending;
+    /// see `POST /classify`) or `inferred` (tags, and for untagged buildings the roof prior
+    /// learned from the tagged buildings around them: `X-Citymesh-Roofs: inferred, N`).
     #[param(inline)]
     pub roofs: Option<RoofsParam>,
     /// How the GLB stores vertices: `plain` (f32, no extension), `quantized`
@@ -156,8 +160,8 @@ pub fn tile_query_of(query: Option<&str>) -> Result<TileQuery, AppError> {
             AppError::bad_request(
                 "invalid_query",
                 format!(
-                    "{e}: roofs is `osm` (the default) or `classified`; encoding is `plain`, \
-                     `quantized` or `meshopt`"
+                    "{e}: roofs is `osm` (the default), `classified` or `inferred`; encoding \
+                     is `plain`, `quantized` or `meshopt`"
                 ),
             )
         }),

@@ -47,7 +47,7 @@ pub struct SceneQuery {
     /// gives `application/json` a higher quality than `model/gltf-binary`.
     #[param(inline)]
     pub format: Option<SceneFormat>,
-    /// Where roof shapes come from: `osm` (the default) or `classified`.
+    /// Where roof shapes come from: `osm` (the default), `classified` or `inferred`.
     #[param(inline)]
     pub roofs: Option<RoofsParam>,
     /// How the GLB stores vertices: `plain` (the default), `quantized` or `meshopt`; see
@@ -155,7 +155,7 @@ async fn generate_box(
                 ("X-Citymesh-Buildings-Skipped" = String, description = "`0`, or the count and reasons, e.g. `2; self_intersecting=2`"),
                 ("X-Citymesh-Flat-Roofs-Percent" = f64, description = "Share of flat roofs (paper Tables 2 and 3)"),
                 ("X-Citymesh-Roof-Shapes-From-Tags-Percent" = f64, description = "Share of roof shapes taken from `roof:shape` tags rather than defaults"),
-                ("X-Citymesh-Roofs" = String, description = "With `roofs=classified`: `classified, N` or `partial, N pending`"),
+                ("X-Citymesh-Roofs" = String, description = "With `roofs=classified`: `classified, N` or `partial, N pending`; with `roofs=inferred`: `inferred, N`"),
             )),
         (status = 304, description = "Not modified: the If-None-Match ETag is current"),
         (status = 400, description = "The bbox is missing, malformed, inverted, out of range or too large", body = ErrorBody),

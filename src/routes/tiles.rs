@@ -35,7 +35,7 @@ use citymesh_core::mesh::Encoding;
                 ("X-Citymesh-Cache" = String, description = "`hit` (memory), `sqlite` (the on-disk cache) or `miss` (generated now)"),
                 ("ETag" = String, description = "Strong validator of the bytes; send it back in If-None-Match"),
                 ("Cache-Control" = String, description = "`public, max-age=3600`"),
-                ("X-Citymesh-Roofs" = String, description = "With `roofs=classified`: `classified, N` (every untagged building has a prediction) or `partial, N pending`"),
+                ("X-Citymesh-Roofs" = String, description = "With `roofs=classified`: `classified, N` (every untagged building has a prediction) or `partial, N pending`; with `roofs=inferred`: `inferred, N` (roofs the prior chose)"),
             )),
         (status = 304, description = "Not modified: the If-None-Match ETag is current"),
         (status = 400, description = "z, x or y is not a number or out of range", body = ErrorBody),

@@ -27,8 +27,8 @@ pub struct TilesetQuery {
     /// (the demo city, or the `--osm` files). Required when buildings come from data tiles.
     #[param(example = "8.400,49.010,8.409,49.017")]
     pub bbox: Option<String>,
-    /// Where the content's roof shapes come from: `osm` (the default) or `classified` (passed on
-    /// to every content tile's URI).
+    /// Where the content's roof shapes come from: `osm` (the default), `classified` or
+    /// `inferred` (passed on to every content and subtree URI).
     #[param(inline)]
     pub roofs: Option<RoofsParam>,
     /// How content tiles store vertices: `meshopt` (the default: quantized and compressed, which
@@ -233,7 +233,7 @@ pub async fn subtree(
                 ("X-Citymesh-Cache" = String, description = "`hit` (memory), `sqlite` (the on-disk cache) or `miss` (generated now)"),
                 ("ETag" = String, description = "Strong validator of the bytes; send it back in If-None-Match"),
                 ("Cache-Control" = String, description = "`public, max-age=3600`"),
-                ("X-Citymesh-Roofs" = String, description = "With `roofs=classified`: `classified, N` or `partial, N pending`"),
+                ("X-Citymesh-Roofs" = String, description = "With `roofs=classified`: `classified, N` or `partial, N pending`; with `roofs=inferred`: `inferred, N`"),
             )),
         (status = 304, description = "Not modified: the If-None-Match ETag is current"),
         (status = 400, description = "The region or a coordinate is malformed, or the region too large", body = ErrorBody),

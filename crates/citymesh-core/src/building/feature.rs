@@ -305,6 +305,20 @@ mod tests {
         assert_eq!((d.name, d.address, d.levels), (None, None, None));
         let odd = feature(&[("building", "yes"), ("roof:shape", "zakomar")]);
         assert_eq!(odd.roof_origin, RoofOrigin::Default);
+        let inferred = feature(&[
+            ("building", "yes"),
+            ("roof:shape", "gabled"),
+            (CHOSEN_ROOF_PROBABILITY, "0.75"),
+            (CHOSEN_ROOF_ORIGIN, INFERRED),
+        ]);
+        assert_eq!(
+            inferred.roof_origin,
+            RoofOrigin::Inferred { probability: 0.75 }
+        );
+        assert_eq!(inferred.roof_origin.name(), "inferred");
+        // An origin without a probability is no chosen shape.
+        let bare = feature(&[("roof:shape", "gabled"), (CHOSEN_ROOF_ORIGIN, INFERRED)]);
+        assert_eq!(bare.roof_origin, RoofOrigin::Tag);
     }
 
     #[test]

@@ -115,6 +115,30 @@ mod tests {
     }
 
     #[test]
+    fn a_shape_the_prior_chose_is_marked_inferred_and_data_cannot_pose_as_one() {
+        let mut choice = RoofChoice::new();
+        choice.insert_by(OsmId::Way(1), RoofShape::Gabled, 0.8, Chooser::Prior);
+        let applied = choice.apply(Cow::Owned(record(1, None)));
+        assert_eq!(
+            applied.tags.get(CHOSEN_ROOF_ORIGIN).map(String::as_str),
+            Some(INFERRED)
+        );
+        assert_eq!(
+            applied
+                .tags
+                .get(CHOSEN_ROOF_PROBABILITY)
+                .map(String::as_str),
+            Some("0.8000")
+        );
+        let mut forged = record(2, Some("gabled"));
+        forged
+            .tags
+            .insert(CHOSEN_ROOF_ORIGIN.into(), INFERRED.into());
+        let clean = RoofChoice::unmarked(&forged);
+        assert!(!clean.tags.contains_key(CHOSEN_ROOF_ORIGIN));
+    }
+
+    #[test]
     fn a_chosen_shape_fills_a_missing_tag_and_never_replaces_one() {
         let mut choice = RoofChoice::new();
         choice.insert(OsmId::Way(1), RoofShape::Hipped, 0.9);
