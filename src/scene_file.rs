@@ -36,14 +36,7 @@ pub fn export_scene(args: &SceneArgs) -> anyhow::Result<SceneReport> {
         repaired.extend(osm.repaired);
         records.extend(osm.buildings);
     }
-    let given = args
-        .bbox
-        .as_ref()
-        .map(|text| {
-            text.parse::<GeoBbox>()
-                .map_err(|e| anyhow::anyhow!("--bbox {text}: {e}"))
-        })
-        .transpose()?;
+    let given = crate::cli::bbox_arg(args.bbox.as_ref())?;
     let dem = DemStore::open(&args.dem_dir, 1 << 30);
     // The ground under the buildings (and a margin around a given box, which buildings cut at
     // its border may reach into) loads on a second thread while the building set is indexed;

@@ -61,3 +61,12 @@ impl From<EncodingArg> for citymesh_core::mesh::Encoding {
         }
     }
 }
+
+/// The value of an optional `--bbox` flag (minLon,minLat,maxLon,maxLat), or an error naming it.
+pub fn bbox_arg(text: Option<&String>) -> anyhow::Result<Option<citymesh_core::geo::GeoBbox>> {
+    text.map(|t| {
+        t.parse::<citymesh_core::geo::GeoBbox>()
+            .map_err(|e| anyhow::anyhow!("--bbox {t}: {e}"))
+    })
+    .transpose()
+}

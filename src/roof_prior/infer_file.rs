@@ -13,14 +13,7 @@ use std::collections::HashSet;
 /// Reads the files, fits the prior on all their tagged buildings, writes every untagged
 /// building (in the box, if given) with its prediction, and returns the report as text.
 pub fn infer_roofs(args: &InferRoofsArgs) -> anyhow::Result<String> {
-    let bbox = args
-        .bbox
-        .as_ref()
-        .map(|text| {
-            text.parse::<GeoBbox>()
-                .map_err(|e| anyhow::anyhow!("--bbox {text}: {e}"))
-        })
-        .transpose()?;
+    let bbox = crate::cli::bbox_arg(args.bbox.as_ref())?;
     let mut records: Vec<BuildingRecord> = Vec::new();
     let mut seen = HashSet::new();
     for path in &args.osm {

@@ -185,32 +185,9 @@ pub fn own_features(record: &BuildingRecord, outline: &Outline) -> Vec<f32> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::osm::{OsmId, Ring, RingNode, Tags};
 
-    /// A `w` x `h` metre rectangle near Karlsruhe, its long side along `w`.
-    pub(crate) fn rectangle(id: i64, w: f64, h: f64, tags: &[(&str, &str)]) -> BuildingRecord {
-        let (lon0, lat0) = (8.4, 49.0);
-        let (mx, my) = LocalFrame::new(lon0, lat0, 0.0).metres_per_degree();
-        let nodes = [[0.0, 0.0], [w, 0.0], [w, h], [0.0, h]]
-            .iter()
-            .enumerate()
-            .map(|(i, p)| RingNode {
-                id: Some(i as i64),
-                lon: lon0 + p[0] / mx,
-                lat: lat0 + p[1] / my,
-            })
-            .collect();
-        let mut t = Tags::new();
-        for (k, v) in tags {
-            t.insert((*k).into(), (*v).into());
-        }
-        BuildingRecord {
-            id: OsmId::Way(id),
-            is_part: false,
-            outers: vec![Ring { nodes }],
-            inners: Vec::new(),
-            tags: t,
-        }
+    fn rectangle(id: i64, w: f64, h: f64, tags: &[(&str, &str)]) -> crate::osm::BuildingRecord {
+        crate::roof_prior::tests::building(id, [0.0, 0.0], w, h, tags)
     }
 
     #[test]

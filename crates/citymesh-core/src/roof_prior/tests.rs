@@ -2,7 +2,13 @@ use super::*;
 use crate::osm::{Ring, RingNode, Tags};
 
 /// A `w` x `h` metre rectangle whose corner is `at` metres east and north of 8.4 E, 49.0 N.
-fn building(id: i64, at: [f64; 2], w: f64, h: f64, tags: &[(&str, &str)]) -> BuildingRecord {
+pub(crate) fn building(
+    id: i64,
+    at: [f64; 2],
+    w: f64,
+    h: f64,
+    tags: &[(&str, &str)],
+) -> BuildingRecord {
     let frame = LocalFrame::new(8.4, 49.0, 0.0);
     let (mx, my) = frame.metres_per_degree();
     let nodes = [[0.0, 0.0], [w, 0.0], [w, h], [0.0, h]]

@@ -283,18 +283,14 @@ impl<'a> SceneRequest<'a> {
     }
 
     fn output(scene: Scene, placement: Placement, encoding: Encoding) -> SceneOutput {
-        let chosen_roofs = scene
-            .buildings
-            .features
-            .iter()
-            .filter(|f| matches!(f.roof_origin, RoofOrigin::Classifier { .. }))
-            .count();
-        let inferred_roofs = scene
-            .buildings
-            .features
-            .iter()
-            .filter(|f| matches!(f.roof_origin, RoofOrigin::Inferred { .. }))
-            .count();
+        let (mut chosen_roofs, mut inferred_roofs) = (0, 0);
+        for f in &scene.buildings.features {
+            match f.roof_origin {
+                RoofOrigin::Classifier { .. } => chosen_roofs += 1,
+                RoofOrigin::Inferred { .. } => inferred_roofs += 1,
+                _ => {}
+            }
+        }
         SceneOutput {
             glb: scene.encode(placement, encoding),
             ground: scene.ground,
