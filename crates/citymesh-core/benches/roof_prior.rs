@@ -35,7 +35,7 @@ fn fit(c: &mut Criterion) {
     let mut group = c.benchmark_group("roof_prior");
     group.sample_size(10);
     group.bench_function("kirchfeld_fit_and_predict", |b| {
-        b.iter(|| black_box(RoofPrior::fit(black_box(&refs))))
+        b.iter(|| black_box(RoofPrior::fit(black_box(&refs))));
     });
     group.finish();
 }

@@ -23,7 +23,8 @@ use std::collections::HashMap;
 /// Fewer tagged buildings (of the three classes) than this, and the prior abstains (its
 /// predictions are still made and reported, but not applied).
 pub const MIN_TAGGED: usize = 30;
-/// Fewer tagged buildings than this, and no prediction is made at all.
+/// Fewer tagged buildings than this, and no prediction is made at all (with at least this many,
+/// predictions are made even when they are all of one class, but not applied).
 pub const MIN_TO_FIT: usize = 10;
 /// The prior abstains unless its cross-validated accuracy beats the share of the most common
 /// tagged class by at least this much (0.05 = 5 percentage points).
@@ -166,7 +167,8 @@ impl RoofPrior {
                 examples.len(),
                 classes_present
             ));
-            if examples.len() < MIN_TO_FIT || classes_present < 2 {
+            // With one class only, its predictions are that class (reported, never applied).
+            if examples.len() < MIN_TO_FIT {
                 return Self {
                     report,
                     probabilities: HashMap::new(),

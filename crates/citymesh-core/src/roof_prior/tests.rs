@@ -133,6 +133,30 @@ fn abstains_with_too_few_tags_or_no_better_than_the_majority() {
     let refs: Vec<&BuildingRecord> = records.iter().collect();
     let none = RoofPrior::fit(&refs);
     assert_eq!((none.report.tagged, none.report.predicted), (8, 0));
+    // Twelve gabled houses and four untagged ones: one class, predicted but not applied.
+    let one: Vec<BuildingRecord> = (0..16i64)
+        .map(|i| {
+            let mut tags = vec![("building", "house")];
+            if i < 12 {
+                tags.push(("roof:shape", "gabled"));
+            }
+            building(i + 1, [25.0 * i as f64, 0.0], 12.0, 9.0, &tags)
+        })
+        .collect();
+    let refs: Vec<&BuildingRecord> = one.iter().collect();
+    let single = RoofPrior::fit(&refs);
+    assert!(
+        single
+            .report
+            .abstained
+            .as_deref()
+            .unwrap()
+            .contains("1 roof classes")
+    );
+    assert_eq!(single.report.predicted, 4);
+    for id in single.predicted_ids() {
+        assert_eq!(single.prediction(&id).unwrap().0, RoofClass::Gabled);
+    }
 
     // Shapes that nothing predicts: identical houses, flat or gabled by a coin that the
     // features cannot see.
