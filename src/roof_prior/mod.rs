@@ -65,6 +65,7 @@ pub fn describe(r: &PriorReport) -> String {
             100.0 * r.majority_share
         ));
     }
+    out.push_str(&format!("\npredictions from: {}", r.predictor));
     match &r.abstained {
         Some(why) => out.push_str(&format!("\nabstains (roofs stay flat): {why}")),
         None => out.push_str(&format!(

@@ -59,6 +59,9 @@ pub struct PriorFigures {
     pub confusion: Option<Vec<Vec<usize>>>,
     /// Why it is not applied, if it is not.
     pub abstained: Option<String>,
+    /// `trees`, or `class_shares` when the trees do not beat the most common class (every
+    /// prediction is then the tagged classes' shares), or `none` (too few to predict).
+    pub predictor: String,
     /// Digest of its training rows, labels and settings.
     pub identity: String,
 }
@@ -75,6 +78,7 @@ impl PriorFigures {
             majority_share: r.majority_share,
             confusion: r.confusion.clone(),
             abstained: r.abstained.clone(),
+            predictor: r.predictor.to_owned(),
             identity: r.identity.clone(),
         }
     }

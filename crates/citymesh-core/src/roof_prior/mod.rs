@@ -27,8 +27,15 @@ pub const MIN_TAGGED: usize = 30;
 /// predictions are made even when they are all of one class, but not applied).
 pub const MIN_TO_FIT: usize = 10;
 /// The prior abstains unless its cross-validated accuracy beats the share of the most common
-/// tagged class by at least this much (0.05 = 5 percentage points).
+/// tagged class by at least this much (0.05 = 5 percentage points), and by that share's standard
+/// error (`sqrt(m (1 - m) / n)`), which is larger below about 100 tagged buildings: on few
+/// examples an out-of-fold accuracy is too noisy to trust a small lead.
 pub const MIN_MARGIN: f64 = 0.05;
+
+/// The lead over the most common class's share `m` of `n` examples the trees must show.
+pub fn required_margin(m: f64, n: usize) -> f64 {
+    MIN_MARGIN.max((m * (1.0 - m) / n.max(1) as f64).sqrt())
+}
 /// A prediction is applied to a roof only at or above this probability; below it the roof keeps
 /// the default (flat) and counts as uncertain.
 pub const APPLY_THRESHOLD: f32 = 0.5;
@@ -71,6 +78,10 @@ pub struct PriorReport {
     pub majority_share: f64,
     /// Why the prior is not applied, if it is not.
     pub abstained: Option<String>,
+    /// What gives the predictions: `trees`, or `class_shares` (the tagged classes' shares,
+    /// smoothed, the same for every building) when the trees do not beat the most common class
+    /// by [`required_margin`] out of fold; `none` below [`MIN_TO_FIT`].
+    pub predictor: &'static str,
     /// A digest of the training rows, their labels and the learner's settings.
     pub identity: String,
 }
@@ -93,6 +104,11 @@ impl RoofPrior {
     /// Learns from the tagged buildings among `records` and predicts the untagged ones. Parts and
     /// outlines without area are left out; records are taken in id order, each id once.
     pub fn fit(records: &[&BuildingRecord]) -> Self {
+        Self::fit_with(records, BoostOptions::default())
+    }
+
+    /// [`RoofPrior::fit`] with other settings of the trees.
+    pub fn fit_with(records: &[&BuildingRecord], options: BoostOptions) -> Self {
         let mut records: Vec<&BuildingRecord> =
             records.iter().copied().filter(|r| !r.is_part).collect();
         records.sort_by_key(|r| r.id);
@@ -146,7 +162,6 @@ impl RoofPrior {
         } else {
             *per_class.iter().max().unwrap_or(&0) as f64 / examples.len() as f64
         };
-        let options = BoostOptions::default();
         let identity = identity(&examples, &options);
         let mut report = PriorReport {
             buildings: measured.len(),
@@ -158,6 +173,7 @@ impl RoofPrior {
             confusion: None,
             majority_share,
             abstained: None,
+            predictor: "none",
             identity,
         };
         let classes_present = per_class.iter().filter(|&&n| n > 0).count();
@@ -191,23 +207,31 @@ impl RoofPrior {
                 probabilities: HashMap::new(),
             };
         };
-        if report.abstained.is_none() && cv.accuracy < majority_share + MIN_MARGIN {
+        // Trees that do not beat the most common class out of fold predict no better than the
+        // class shares do: the shares are the prediction then.
+        let margin = required_margin(majority_share, examples.len());
+        let trees_help = cv.accuracy >= majority_share + margin;
+        if report.abstained.is_none() && !trees_help {
             report.abstained = Some(format!(
-                "cross-validated accuracy {:.1} % does not beat the most common class ({:.1} %) by {:.0} points",
+                "cross-validated accuracy {:.1} % does not beat the most common class ({:.1} %) by {:.1} points",
                 100.0 * cv.accuracy,
                 100.0 * majority_share,
-                100.0 * MIN_MARGIN
+                100.0 * margin
             ));
         }
         report.cross_validated_accuracy = Some(cv.accuracy);
         report.cross_validated_correct = Some(cv.correct);
         report.confusion = Some(cv.confusion);
+        let shares = per_class.map(|n| (n as f32 + 1.0) / (examples.len() as f32 + 3.0));
+        report.predictor = if trees_help { "trees" } else { "class_shares" };
         let mut probabilities = HashMap::new();
         for (i, (r, _)) in measured.iter().enumerate() {
             if r.tags.contains_key("roof:shape") {
                 continue;
             }
-            if let Some(p) = model.probabilities(&row(i)) {
+            if !trees_help {
+                probabilities.insert(r.id, shares);
+            } else if let Some(p) = model.probabilities(&row(i)) {
                 probabilities.insert(r.id, [p[0], p[1], p[2]]);
             }
         }

@@ -154,6 +154,7 @@ fn abstains_with_too_few_tags_or_no_better_than_the_majority() {
             .contains("1 roof classes")
     );
     assert_eq!(single.report.predicted, 4);
+    assert_eq!(single.report.predictor, "class_shares");
     for id in single.predicted_ids() {
         assert_eq!(single.prediction(&id).unwrap().0, RoofClass::Gabled);
     }
@@ -186,6 +187,15 @@ fn abstains_with_too_few_tags_or_no_better_than_the_majority() {
         "{:?}",
         blind.report
     );
+    // Its predictions are then the tagged classes' shares, the same everywhere.
+    assert_eq!(blind.report.predictor, "class_shares");
+    assert_eq!(few.report.predictor, "trees");
+    assert_eq!(
+        required_margin(0.5, 16),
+        0.125,
+        "the standard error of a share of 16"
+    );
+    assert_eq!(required_margin(0.5, 400), MIN_MARGIN);
 }
 
 #[test]
