@@ -27,6 +27,8 @@ enum Mode {
     Truncated,
     /// Newer data: every other building way of the normal answer is gone.
     Thinner,
+    /// Newer data: the buildings with an even id lost their `roof:shape`.
+    FewerRoofTags,
 }
 
 struct Stub {
@@ -196,6 +198,17 @@ async fn interpreter(
                         .iter()
                         .all(|m| m["type"] != "way" || ways.contains(&m["ref"].as_i64().unwrap()))
             });
+            serde_json::to_vec(&doc).unwrap().into_response()
+        }
+        Mode::FewerRoofTags => {
+            let mut doc: Value = serde_json::from_slice(&stub.answer(query_box(&query))).unwrap();
+            for e in doc["elements"].as_array_mut().unwrap() {
+                if e["id"].as_i64().unwrap_or(1) % 2 == 0
+                    && let Some(tags) = e.get_mut("tags").and_then(Value::as_object_mut)
+                {
+                    tags.remove("roof:shape");
+                }
+            }
             serde_json::to_vec(&doc).unwrap().into_response()
         }
     }
@@ -430,6 +443,79 @@ async fn stale_data_is_served_while_a_refresh_runs_and_a_change_invalidates_its_
             .header("x-citymesh-cache"),
         "miss"
     );
+}
+
+/// The prior of the data tile holding `TILE`, as `/scene/stats?roofs=inferred` reports it:
+/// its identity and tagged buildings.
+async fn tile_prior(app: &axum::Router) -> (String, u64) {
+    let bbox = TileCoord::new(16, 34297, 22493).unwrap().bounds();
+    let stats = get(app, &format!("/scene/stats?bbox={bbox}&roofs=inferred"))
+        .await
+        .json();
+    let prior = stats["inferred_roofs"]["priors"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["scope"] == "14/8574/5623")
+        .unwrap()
+        .clone();
+    (
+        prior["identity"].as_str().unwrap().to_owned(),
+        prior["tagged"].as_u64().unwrap(),
+    )
+}
+
+#[tokio::test]
+async fn a_refresh_that_changes_roof_tags_changes_the_prior_and_the_inferred_tiles() {
+    let stub = Stub::new();
+    let url = start_stub(stub.clone()).await;
+    let db = tempfile::tempdir().unwrap();
+    let app = app_with(
+        &dem_dir(),
+        &db.path().join("c.sqlite"),
+        &[
+            "--overpass-url",
+            &url,
+            "--overpass-retries",
+            "0",
+            "--osm-ttl-hours",
+            "0.0003",
+        ],
+    )
+    .await;
+    let uri = format!("{TILE}?roofs=inferred");
+    let before = get(&app, &uri).await;
+    assert_eq!(before.status, StatusCode::OK);
+    let inferred: usize = before
+        .header("x-citymesh-roofs")
+        .strip_prefix("inferred, ")
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(inferred > 0, "{}", before.header("x-citymesh-roofs"));
+    let (identity, tagged) = tile_prior(&app).await;
+    assert_eq!(tagged, 35);
+
+    // Mappers removed half the roof tags; the data goes stale and a request starts a refresh.
+    stub.set(Mode::FewerRoofTags);
+    tokio::time::sleep(std::time::Duration::from_millis(2100)).await;
+    let _ = get(&app, "/tiles/16/34297/22494.glb").await;
+    let mut waited = 0;
+    let (new_identity, new_tagged) = loop {
+        let now = tile_prior(&app).await;
+        if now.0 != identity {
+            break now;
+        }
+        tokio::time::sleep(std::time::Duration::from_millis(50)).await;
+        waited += 1;
+        assert!(waited < 100, "the prior did not change after 5 s");
+    };
+    assert_ne!(new_identity, identity);
+    // 35 tagged less those with an even id: under 30, so the prior abstains.
+    assert!(new_tagged < 30, "{new_tagged}");
+    let after = get(&app, &uri).await;
+    assert_ne!(after.header("etag"), before.header("etag"));
+    assert_eq!(after.header("x-citymesh-roofs"), "inferred, 0");
 }
 
 #[tokio::test]

@@ -126,9 +126,9 @@ fn the_prior_on_every_real_file() {
         let right = records
             .iter()
             .filter(|rec| {
-                hidden.get(&rec.id.to_string()).is_some_and(|truth| {
-                    half.prediction(&rec.id).map(|p| p.0) == Some(*truth)
-                })
+                hidden
+                    .get(&rec.id.to_string())
+                    .is_some_and(|truth| half.prediction(&rec.id).map(|p| p.0) == Some(*truth))
             })
             .count();
         let by_common = hidden.values().filter(|c| c.index() == common).count();
