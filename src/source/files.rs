@@ -1,8 +1,9 @@
 //! The `--osm` files (or the procedural demo city), read once at start-up and held in memory.
 
+use super::data_tiles::data_tile::DATA_ZOOM;
 use super::{AreaBuildings, BuildingSource, DataChanged, PriorScope, SourceError, skips_near};
 use citymesh_core::building::set::BuildingSet;
-use citymesh_core::geo::GeoBbox;
+use citymesh_core::geo::{GeoBbox, TileCoord};
 use citymesh_core::osm::{BuildingRecord, OsmError, Repaired, Skipped, read_buildings};
 use futures_util::future::BoxFuture;
 use std::collections::HashSet;
@@ -23,6 +24,10 @@ pub enum OsmFileError {
     #[error("{path}: {source} (give OSM PBF, OSM XML or Overpass JSON, optionally .gz)")]
     Format { path: String, source: OsmError },
 }
+
+/// Most buildings whose files teach one roof prior together (about a city of half a million
+/// people): a fit learns from at most 5,000 of them but predicts, and keeps, every untagged one.
+pub const MAX_WHOLE_PRIOR: usize = 200_000;
 
 /// Buildings held in memory: the `--osm` files, or the demo city.
 #[derive(Debug)]
@@ -83,15 +88,29 @@ impl BuildingSource for FileSource {
         self.set.extent()
     }
 
-    fn prior_scope(&self, _lon: f64, _lat: f64) -> PriorScope {
-        PriorScope::Everything
+    /// All the files' buildings teach one prior, up to [`MAX_WHOLE_PRIOR`] buildings; larger
+    /// file sets are cut into data-tile-sized scopes, as data tiles are, so a fit stays bounded.
+    fn prior_scope(&self, lon: f64, lat: f64) -> PriorScope {
+        scope_for(self.set.records().len(), lon, lat)
     }
 
     fn prior_records<'a>(
         &'a self,
-        _scope: PriorScope,
+        scope: PriorScope,
     ) -> BoxFuture<'a, Result<Vec<Arc<BuildingRecord>>, SourceError>> {
-        Box::pin(async move { Ok(self.set.records().to_vec()) })
+        Box::pin(async move {
+            Ok(match scope {
+                PriorScope::Everything => self.set.records().to_vec(),
+                PriorScope::DataTile(t) => {
+                    let all = self.set.records();
+                    self.set
+                        .clusters_intersecting(&t.bounds())
+                        .into_iter()
+                        .flat_map(|c| c.records.iter().map(|&i| all[i].clone()))
+                        .collect()
+                }
+            })
+        })
     }
 }
 
@@ -162,4 +181,51 @@ pub fn load_osm_files(paths: &[PathBuf]) -> Result<FileSource, OsmFileError> {
         fingerprint: format!("{:016x}", h.finish()),
         changes: broadcast::channel(1).0,
     })
+}
+
+/// The prior scope of a building at (`lon`, `lat`) among `buildings` held.
+fn scope_for(buildings: usize, lon: f64, lat: f64) -> PriorScope {
+    if buildings <= MAX_WHOLE_PRIOR {
+        PriorScope::Everything
+    } else {
+        PriorScope::DataTile(TileCoord::containing(DATA_ZOOM, lon, lat))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)] // test code: failing is the point
+    use super::*;
+    use citymesh_core::procedural::{ProceduralParams, generate_city};
+
+    #[test]
+    fn large_file_sets_teach_priors_by_data_tile() {
+        assert_eq!(scope_for(1_000, 8.4, 49.05), PriorScope::Everything);
+        assert_eq!(
+            scope_for(MAX_WHOLE_PRIOR + 1, 8.4, 49.05),
+            PriorScope::DataTile(TileCoord::containing(14, 8.4, 49.05))
+        );
+    }
+
+    #[tokio::test]
+    async fn a_data_tile_scope_holds_the_buildings_reaching_into_it() {
+        let city = generate_city(&ProceduralParams::default()).unwrap();
+        let n = city.records.len();
+        let source = FileSource::new(BuildingSet::new(city.records), "demo");
+        let all = source.prior_records(PriorScope::Everything).await.unwrap();
+        assert_eq!(all.len(), n);
+        let (lon, lat) = city.bbox.center();
+        let tile = TileCoord::containing(DATA_ZOOM, lon, lat);
+        let some = source
+            .prior_records(PriorScope::DataTile(tile))
+            .await
+            .unwrap();
+        assert!(!some.is_empty() && some.len() <= n);
+        let far = TileCoord::containing(DATA_ZOOM, lon + 1.0, lat);
+        let none = source
+            .prior_records(PriorScope::DataTile(far))
+            .await
+            .unwrap();
+        assert!(none.is_empty());
+    }
 }
