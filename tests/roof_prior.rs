@@ -167,3 +167,55 @@ fn the_prior_on_every_real_file() {
         ]
     );
 }
+
+#[test]
+fn infer_roofs_writes_only_the_box_asked_and_refuses_a_bad_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let osm = common::data_dir().join("osm/karlsruhe-kirchfeld.osm.pbf");
+    let run = |extra: &[&str], out: &std::path::Path| {
+        Command::new(env!("CARGO_BIN_EXE_citymesh"))
+            .args(["infer-roofs", "--osm"])
+            .arg(&osm)
+            .args(extra)
+            .arg("-o")
+            .arg(out)
+            .output()
+            .unwrap()
+    };
+    let read = |p: &std::path::Path| -> serde_json::Value {
+        serde_json::from_slice(&std::fs::read(p).unwrap()).unwrap()
+    };
+    let (all, part) = (
+        dir.path().join("all.geojson"),
+        dir.path().join("part.geojson"),
+    );
+    assert!(run(&[], &all).status.success());
+    let bbox = "8.3930,49.0450,8.3960,49.0480";
+    assert!(run(&["--bbox", bbox], &part).status.success());
+    let (all, part) = (read(&all), read(&part));
+    // The same prior either way: the box only chooses what is written.
+    assert_eq!(
+        all["properties"]["roof_prior"],
+        part["properties"]["roof_prior"]
+    );
+    let features = part["features"].as_array().unwrap();
+    assert!(!features.is_empty());
+    assert!(features.len() < all["features"].as_array().unwrap().len());
+    for f in features {
+        let ring = f["geometry"]["coordinates"][0].as_array().unwrap();
+        assert!(ring.iter().any(|p| {
+            let (lon, lat) = (p[0].as_f64().unwrap(), p[1].as_f64().unwrap());
+            (8.3930..=8.3960).contains(&lon) && (49.0450..=49.0480).contains(&lat)
+        }));
+        let p = &f["properties"];
+        let sum: f64 = ["flat", "gabled", "hipped"]
+            .iter()
+            .map(|c| p["probabilities"][c].as_f64().unwrap())
+            .sum();
+        assert!((sum - 1.0).abs() < 1e-3, "{p}");
+        assert_eq!(p["applied"], p["probability"].as_f64().unwrap() >= 0.5);
+    }
+    let bad = run(&["--bbox", "8.4,49.1,8.3"], &dir.path().join("bad.geojson"));
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("--bbox"));
+}
