@@ -12,11 +12,9 @@
 mod common;
 
 use axum::http::StatusCode;
-use citymesh::cli::ServeArgs;
 use citymesh::jobs::worker::WorkerConfig;
 use citymesh_core::geo::TileCoord;
 use citymesh_core::osm::{BuildingRecord, read_buildings, write_overpass_json};
-use clap::Parser;
 use std::collections::HashMap;
 use std::path::Path;
 use std::time::Duration;
@@ -155,21 +153,12 @@ async fn adapting_on_the_tagged_roofs_of_an_area_classifies_its_untagged_roofs_b
     let dir = tempfile::tempdir().unwrap();
     let (truth, osm, shapes) = kirchfeld(dir.path());
     let imagery = common::imagery::styled_imagery_server(truth).await;
-    let dem = common::dem_dir();
-    let args = ServeArgs::parse_from([
-        "serve",
-        "--dem-dir",
-        dem.to_str().unwrap(),
-        "--cache-db",
-        dir.path().join("c.sqlite").to_str().unwrap(),
-        "--osm",
-        osm.to_str().unwrap(),
-        "--roof-classifier",
-        "--imagery-url",
+    let args = common::imagery::classifying_args(
+        &dir.path().join("c.sqlite"),
+        &osm,
         &format!("{imagery}/styled/{{z}}/{{x}}/{{y}}"),
-        "--imagery-id",
         "styled",
-    ]);
+    );
     let state = citymesh::server::build_state(&args).await.unwrap();
     assert!(state.classifier.is_some(), "the classifier did not load");
     state.roofs.spawn_workers(1, WorkerConfig::default());
@@ -334,21 +323,7 @@ async fn adapt_roofs_from_osm_files_stores_a_head_the_server_then_uses() {
     assert!(head.is_file());
 
     // A server on the same database and imagery uses the stored head from the start.
-    let dem = common::dem_dir();
-    let args = ServeArgs::parse_from([
-        "serve",
-        "--dem-dir",
-        dem.to_str().unwrap(),
-        "--cache-db",
-        db.to_str().unwrap(),
-        "--osm",
-        osm.to_str().unwrap(),
-        "--roof-classifier",
-        "--imagery-url",
-        &url,
-        "--imagery-id",
-        "styled",
-    ]);
+    let args = common::imagery::classifying_args(&db, &osm, &url, "styled");
     let state = citymesh::server::build_state(&args).await.unwrap();
     let active = state.roofs.active();
     assert!(

@@ -11,13 +11,11 @@
 mod common;
 
 use axum::http::StatusCode;
-use citymesh::cli::ServeArgs;
 use citymesh::jobs::worker::WorkerConfig;
 use citymesh_core::learn::cross_validation::argmax;
 use citymesh_core::osm::{BuildingRecord, OsmId, read_buildings, write_overpass_json};
 use citymesh_core::roof_image::RoofClass;
 use citymesh_core::roof_prior::{RoofPrior, combine, tagged_class};
-use clap::Parser;
 use std::collections::HashMap;
 use std::time::Duration;
 
@@ -57,21 +55,12 @@ async fn the_classifier_and_the_prior_together_beat_each_alone() {
     let prior = RoofPrior::fit(&refs);
 
     let imagery = common::imagery::imagery_server().await;
-    let dem = common::dem_dir();
-    let args = ServeArgs::parse_from([
-        "serve",
-        "--dem-dir",
-        dem.to_str().unwrap(),
-        "--cache-db",
-        dir.path().join("c.sqlite").to_str().unwrap(),
-        "--osm",
-        osm.to_str().unwrap(),
-        "--roof-classifier",
-        "--imagery-url",
+    let args = common::imagery::classifying_args(
+        &dir.path().join("c.sqlite"),
+        &osm,
         &format!("{imagery}/ortho/{{z}}/{{x}}/{{y}}"),
-        "--imagery-id",
         "ortho",
-    ]);
+    );
     let state = citymesh::server::build_state(&args).await.unwrap();
     assert!(state.classifier.is_some(), "the classifier did not load");
     state.roofs.spawn_workers(1, WorkerConfig::default());

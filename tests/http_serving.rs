@@ -241,6 +241,23 @@ async fn online_app(db: &std::path::Path, url: &str) -> axum::Router {
     .await
 }
 
+/// An app over the stub whose data goes stale after about a second.
+async fn stale_soon_app(db: &std::path::Path, url: &str) -> axum::Router {
+    app_with(
+        &dem_dir(),
+        db,
+        &[
+            "--overpass-url",
+            url,
+            "--overpass-retries",
+            "0",
+            "--osm-ttl-hours",
+            "0.0003",
+        ],
+    )
+    .await
+}
+
 /// A z16 tile well inside data tile 14/8574/5623, over Karlsruhe-Kirchfeld.
 const TILE: &str = "/tiles/16/34297/22493.glb";
 
@@ -402,21 +419,7 @@ async fn stale_data_is_served_while_a_refresh_runs_and_a_change_invalidates_its_
     let stub = Stub::new();
     let url = start_stub(stub.clone()).await;
     let db = tempfile::tempdir().unwrap();
-    let file = db.path().join("c.sqlite");
-    // Data goes stale after about a second.
-    let app = app_with(
-        &dem_dir(),
-        &file,
-        &[
-            "--overpass-url",
-            &url,
-            "--overpass-retries",
-            "0",
-            "--osm-ttl-hours",
-            "0.0003",
-        ],
-    )
-    .await;
+    let app = stale_soon_app(&db.path().join("c.sqlite"), &url).await;
     let a = get(&app, TILE).await;
     let before: usize = a.header("x-citymesh-buildings").parse().unwrap();
     assert_eq!(stub.count(), 1);
@@ -470,19 +473,7 @@ async fn a_refresh_that_changes_roof_tags_changes_the_prior_and_the_inferred_til
     let stub = Stub::new();
     let url = start_stub(stub.clone()).await;
     let db = tempfile::tempdir().unwrap();
-    let app = app_with(
-        &dem_dir(),
-        &db.path().join("c.sqlite"),
-        &[
-            "--overpass-url",
-            &url,
-            "--overpass-retries",
-            "0",
-            "--osm-ttl-hours",
-            "0.0003",
-        ],
-    )
-    .await;
+    let app = stale_soon_app(&db.path().join("c.sqlite"), &url).await;
     let uri = format!("{TILE}?roofs=inferred");
     let before = get(&app, &uri).await;
     assert_eq!(before.status, StatusCode::OK);

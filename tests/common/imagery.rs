@@ -225,3 +225,29 @@ pub async fn styled_imagery_server(records: Vec<BuildingRecord>) -> String {
     tokio::spawn(async move { axum::serve(listener, app).await.unwrap() });
     format!("http://{addr}")
 }
+
+/// The arguments of a server of `osm` with the roof classifier on the XYZ imagery `url` (a
+/// `{z}/{x}/{y}` template) named `id`, over the database `db`.
+pub fn classifying_args(
+    db: &std::path::Path,
+    osm: &std::path::Path,
+    url: &str,
+    id: &str,
+) -> citymesh::cli::ServeArgs {
+    use clap::Parser;
+    let dem = super::dem_dir();
+    citymesh::cli::ServeArgs::parse_from([
+        "serve",
+        "--dem-dir",
+        dem.to_str().unwrap(),
+        "--cache-db",
+        db.to_str().unwrap(),
+        "--osm",
+        osm.to_str().unwrap(),
+        "--roof-classifier",
+        "--imagery-url",
+        url,
+        "--imagery-id",
+        id,
+    ])
+}
