@@ -225,37 +225,26 @@ async fn start_stub(stub: Arc<Stub>) -> String {
     format!("http://{addr}/api/interpreter")
 }
 
+/// An app over the stub (no retries), with one more flag and its value.
+async fn stub_app(db: &std::path::Path, url: &str, flag: [&str; 2]) -> axum::Router {
+    let args = [
+        "--overpass-url",
+        url,
+        "--overpass-retries",
+        "0",
+        flag[0],
+        flag[1],
+    ];
+    app_with(&dem_dir(), db, &args).await
+}
+
 async fn online_app(db: &std::path::Path, url: &str) -> axum::Router {
-    app_with(
-        &dem_dir(),
-        db,
-        &[
-            "--overpass-url",
-            url,
-            "--overpass-retries",
-            "0",
-            "--overpass-timeout-s",
-            "0.5",
-        ],
-    )
-    .await
+    stub_app(db, url, ["--overpass-timeout-s", "0.5"]).await
 }
 
 /// An app over the stub whose data goes stale after about a second.
 async fn stale_soon_app(db: &std::path::Path, url: &str) -> axum::Router {
-    app_with(
-        &dem_dir(),
-        db,
-        &[
-            "--overpass-url",
-            url,
-            "--overpass-retries",
-            "0",
-            "--osm-ttl-hours",
-            "0.0003",
-        ],
-    )
-    .await
+    stub_app(db, url, ["--osm-ttl-hours", "0.0003"]).await
 }
 
 /// A z16 tile well inside data tile 14/8574/5623, over Karlsruhe-Kirchfeld.
