@@ -9,9 +9,13 @@ use citymesh_core::geo::GeoBbox;
 use citymesh_core::roof_prior::RoofPrior;
 use std::future::Future;
 use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 pub struct RoofPriors {
     fitted: moka::future::Cache<PriorScope, Arc<RoofPrior>>,
+    /// Counts invalidations. A prior fitted while one ran may have learned from the old data:
+    /// it is answered, but not kept (moka would otherwise insert it after the invalidation).
+    invalidations: AtomicU64,
 }
 
 impl RoofPriors {
@@ -23,6 +27,7 @@ impl RoofPriors {
                 .weigher(|_, p: &Arc<RoofPrior>| weight(p.byte_size()))
                 .support_invalidation_closures()
                 .build(),
+            invalidations: AtomicU64::new(0),
         }
     }
 
@@ -37,6 +42,7 @@ impl RoofPriors {
         F: Future<Output = Result<Arc<RoofPrior>, AppError>>,
     {
         let mut fitted_now = false;
+        let before = self.invalidations.load(Ordering::SeqCst);
         let prior = self
             .fitted
             .try_get_with(scope, async {
@@ -45,11 +51,15 @@ impl RoofPriors {
             })
             .await
             .map_err(|e: Arc<AppError>| (*e).clone())?;
+        if fitted_now && self.invalidations.load(Ordering::SeqCst) != before {
+            self.fitted.invalidate(&scope).await;
+        }
         Ok((prior, !fitted_now))
     }
 
     /// Drops the priors whose scope data changed over `area` touches.
     pub fn invalidate_area(&self, area: &GeoBbox) {
+        self.invalidations.fetch_add(1, Ordering::SeqCst);
         let area = *area;
         if let Err(e) = self
             .fitted
@@ -62,6 +72,7 @@ impl RoofPriors {
 
     /// Drops every prior.
     pub fn invalidate_all(&self) {
+        self.invalidations.fetch_add(1, Ordering::SeqCst);
         self.fitted.invalidate_all();
     }
 
@@ -69,5 +80,82 @@ impl RoofPriors {
     pub async fn weighted_size(&self) -> u64 {
         self.fitted.run_pending_tasks().await;
         self.fitted.weighted_size()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)] // test code: failing is the point
+    use super::*;
+    use citymesh_core::geo::TileCoord;
+
+    fn prior() -> Arc<RoofPrior> {
+        Arc::new(RoofPrior::fit(&[]))
+    }
+
+    #[tokio::test]
+    async fn one_fit_per_scope_until_its_area_changes() {
+        let priors = RoofPriors::new(1 << 20);
+        let t = TileCoord::containing(14, 8.4, 49.05);
+        let scope = PriorScope::DataTile(t);
+        let (_, held) = priors
+            .get_or_fit(scope, async { Ok(prior()) })
+            .await
+            .unwrap();
+        assert!(!held);
+        let (_, held) = priors
+            .get_or_fit(scope, async { Ok(prior()) })
+            .await
+            .unwrap();
+        assert!(held);
+        // A change elsewhere keeps it; one over its tile drops it.
+        priors.invalidate_area(&"9.0,50.0,9.1,50.1".parse().unwrap());
+        priors.fitted.run_pending_tasks().await;
+        assert!(
+            priors
+                .get_or_fit(scope, async { Ok(prior()) })
+                .await
+                .unwrap()
+                .1
+        );
+        priors.invalidate_area(&t.bounds());
+        priors.fitted.run_pending_tasks().await;
+        assert!(
+            !priors
+                .get_or_fit(scope, async { Ok(prior()) })
+                .await
+                .unwrap()
+                .1
+        );
+    }
+
+    #[tokio::test]
+    async fn a_prior_fitted_while_data_changed_is_answered_but_not_kept() {
+        let priors = Arc::new(RoofPriors::new(1 << 20));
+        let scope = PriorScope::Everything;
+        let during = priors.clone();
+        let (_, held) = priors
+            .get_or_fit(scope, async move {
+                during.invalidate_all();
+                Ok(prior())
+            })
+            .await
+            .unwrap();
+        assert!(!held);
+        priors.fitted.run_pending_tasks().await;
+        assert!(
+            !priors
+                .get_or_fit(scope, async { Ok(prior()) })
+                .await
+                .unwrap()
+                .1
+        );
+        assert!(
+            priors
+                .get_or_fit(scope, async { Ok(prior()) })
+                .await
+                .unwrap()
+                .1
+        );
     }
 }
