@@ -93,40 +93,28 @@ mod tests {
         Arc::new(RoofPrior::fit(&[]))
     }
 
+    /// Whether `scope`'s prior is held (fitting one when it is not).
+    async fn held(priors: &RoofPriors, scope: PriorScope) -> bool {
+        priors.fitted.run_pending_tasks().await;
+        priors
+            .get_or_fit(scope, async { Ok(prior()) })
+            .await
+            .unwrap()
+            .1
+    }
+
     #[tokio::test]
     async fn one_fit_per_scope_until_its_area_changes() {
         let priors = RoofPriors::new(1 << 20);
         let t = TileCoord::containing(14, 8.4, 49.05);
         let scope = PriorScope::DataTile(t);
-        let (_, held) = priors
-            .get_or_fit(scope, async { Ok(prior()) })
-            .await
-            .unwrap();
-        assert!(!held);
-        let (_, held) = priors
-            .get_or_fit(scope, async { Ok(prior()) })
-            .await
-            .unwrap();
-        assert!(held);
+        assert!(!held(&priors, scope).await);
+        assert!(held(&priors, scope).await);
         // A change elsewhere keeps it; one over its tile drops it.
         priors.invalidate_area(&"9.0,50.0,9.1,50.1".parse().unwrap());
-        priors.fitted.run_pending_tasks().await;
-        assert!(
-            priors
-                .get_or_fit(scope, async { Ok(prior()) })
-                .await
-                .unwrap()
-                .1
-        );
+        assert!(held(&priors, scope).await);
         priors.invalidate_area(&t.bounds());
-        priors.fitted.run_pending_tasks().await;
-        assert!(
-            !priors
-                .get_or_fit(scope, async { Ok(prior()) })
-                .await
-                .unwrap()
-                .1
-        );
+        assert!(!held(&priors, scope).await);
     }
 
     #[tokio::test]
@@ -134,28 +122,15 @@ mod tests {
         let priors = Arc::new(RoofPriors::new(1 << 20));
         let scope = PriorScope::Everything;
         let during = priors.clone();
-        let (_, held) = priors
+        let (_, was_held) = priors
             .get_or_fit(scope, async move {
                 during.invalidate_all();
                 Ok(prior())
             })
             .await
             .unwrap();
-        assert!(!held);
-        priors.fitted.run_pending_tasks().await;
-        assert!(
-            !priors
-                .get_or_fit(scope, async { Ok(prior()) })
-                .await
-                .unwrap()
-                .1
-        );
-        assert!(
-            priors
-                .get_or_fit(scope, async { Ok(prior()) })
-                .await
-                .unwrap()
-                .1
-        );
+        assert!(!was_held);
+        assert!(!held(&priors, scope).await);
+        assert!(held(&priors, scope).await);
     }
 }

@@ -60,7 +60,12 @@ async fn plan(state: &AppState, area: SceneArea, roofs: RoofsParam) -> Result<Ro
                 chosen: ChosenRoofs::Inferred(p.figures),
             }
         }
-        RoofsParam::Classified | RoofsParam::Osm => {
+        RoofsParam::Osm => {
+            return Err(AppError::internal(
+                "roofs=osm has no roof plan: it goes straight to the cache",
+            ));
+        }
+        RoofsParam::Classified => {
             let p = classified_roofs(state, area).await?;
             RoofPlan {
                 buildings: p.buildings,

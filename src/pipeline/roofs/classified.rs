@@ -78,53 +78,57 @@ pub async fn classified_roofs(
                 .collect())
         })
         .await?;
-    // Priors only for buildings with a prediction to combine with.
-    let predicted: Vec<crate::source::PriorScope> = jobs.index.with(|index| {
+    // Each candidate's prediction for its current footprint, if there is one: one pass over the
+    // index, which workers keep writing to.
+    let found: Vec<Option<([f32; 3], f64)>> = jobs.index.with(|index| {
         wanted
             .iter()
-            .filter(|(id, hash, _)| {
+            .map(|(id, hash, _)| {
                 index
                     .get(&id.to_string())
-                    .is_some_and(|p| &p.footprint_hash == hash)
+                    .filter(|p| &p.footprint_hash == hash)
+                    .map(|p| (p.prediction.probabilities, p.work_ms))
             })
-            .filter_map(|(_, _, s)| *s)
             .collect()
     });
-    let priors = priors_of(state, predicted).await?;
+    // Priors only for buildings with a prediction to combine with.
+    let scopes = wanted
+        .iter()
+        .zip(&found)
+        .filter(|(_, f)| f.is_some())
+        .filter_map(|((_, _, s), _)| *s)
+        .collect();
+    let priors = priors_of(state, scopes).await?;
     let mut choice = RoofChoice::new();
     let mut figures = RoofFigures::default();
     let mut digest = xxhash_rust::xxh3::Xxh3::new();
-    jobs.index.with(|index| {
-        for (record_id, hash, scope) in &wanted {
-            let id = record_id.to_string();
-            let Some(found) = index.get(&id).filter(|p| &p.footprint_hash == hash) else {
-                figures.pending += 1;
-                continue;
-            };
-            figures.classification_ms += found.work_ms;
-            digest.update(id.as_bytes());
-            let prior = scope
-                .and_then(|s| priors.get(&s))
-                .filter(|p| p.is_applied())
-                .and_then(|p| Some((p.probabilities(record_id)?, p.report.identity.clone())));
-            let mut probabilities = found.prediction.probabilities;
-            if let Some((from_prior, identity)) = prior {
-                probabilities = combine(probabilities, from_prior);
-                figures.with_prior += 1;
-                digest.update(identity.as_bytes());
-            }
-            let p = crate::classifier::Prediction::new(probabilities);
-            if p.confidence() >= jobs.threshold {
-                let class: RoofClass = p.class();
-                choice.insert(*record_id, class.shape(), p.confidence());
-                figures.classified += 1;
-                digest.update(class.name().as_bytes());
-            } else {
-                figures.uncertain += 1;
-                digest.update(b"uncertain");
-            }
+    for ((record_id, _, scope), found) in wanted.iter().zip(found) {
+        let Some((mut probabilities, work_ms)) = found else {
+            figures.pending += 1;
+            continue;
+        };
+        figures.classification_ms += work_ms;
+        digest.update(record_id.to_string().as_bytes());
+        let prior = scope
+            .and_then(|s| priors.get(&s))
+            .filter(|p| p.is_applied())
+            .and_then(|p| Some((p.probabilities(record_id)?, p.report.identity.as_str())));
+        if let Some((from_prior, identity)) = prior {
+            probabilities = combine(probabilities, from_prior);
+            figures.with_prior += 1;
+            digest.update(identity.as_bytes());
         }
-    });
+        let p = crate::classifier::Prediction::new(probabilities);
+        if p.confidence() >= jobs.threshold {
+            let class: RoofClass = p.class();
+            choice.insert(*record_id, class.shape(), p.confidence());
+            figures.classified += 1;
+            digest.update(class.name().as_bytes());
+        } else {
+            figures.uncertain += 1;
+            digest.update(b"uncertain");
+        }
+    }
     Ok(ClassifiedRoofs {
         buildings,
         choice: Arc::new(choice),
