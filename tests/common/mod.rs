@@ -4,6 +4,7 @@
 
 pub mod decode;
 pub mod imagery;
+pub mod postgres;
 
 use axum::body::Body;
 use axum::http::{HeaderMap, Request, StatusCode};
