@@ -10,6 +10,7 @@
 pub mod budget;
 pub mod invalidation;
 pub mod key;
+mod pg_store;
 mod region_cache;
 mod roof_priors;
 mod scene_cache;
@@ -18,6 +19,7 @@ mod tile_cache;
 
 pub use budget::MemoryBudget;
 pub use key::{Encoding, Region, RoofSource, TileId, TileKey};
+pub use pg_store::PgTileStore;
 pub use region_cache::RegionCache;
 pub use roof_priors::RoofPriors;
 pub use scene_cache::{CachedScene, SceneCache};

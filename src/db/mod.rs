@@ -2,7 +2,10 @@
 //! start-up. Each table has its own small store type beside its user: generated tiles in
 //! `crate::cache` (`cache/store.rs`), OSM data tiles in `crate::source::data_tiles`.
 
+mod postgres;
 mod use_notes;
+
+pub use postgres::open_postgres;
 
 pub use use_notes::UseNotes;
 
