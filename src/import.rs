@@ -1,17 +1,18 @@
 //! `citymesh import FILE...`: OSM files into the data-tile store (`crate::source::data_tiles`),
-//! then the stored tiles generated from data that changed are dropped (`crate::cache`). Run it
-//! while the server is stopped, or restart the server after it: a running server keeps the data
-//! it already parsed in memory.
+//! then the stored tiles generated from data that changed are dropped (`crate::cache`). On
+//! SQLite, run it while the server is stopped, or restart the server after it: a running server
+//! keeps the data it already parsed in memory. On PostgreSQL, running replicas are told which
+//! areas changed (in the transaction that drops their tiles) and drop what they hold of them.
 
 use crate::cache::TileStore;
 use crate::cache::invalidation::drop_stored;
-use crate::db;
+use crate::db::{self, Database};
 use crate::source::data_tiles::OsmTileStore;
 use crate::source::data_tiles::import::{ImportReport, import_files};
 use anyhow::Context;
 use std::path::PathBuf;
 
-/// Imports the files into the database at `cache_db`. `quiet` hides the progress bars.
+/// Imports the files into the SQLite database at `cache_db`. `quiet` hides the progress bars.
 pub async fn import(
     files: &[PathBuf],
     cache_db: &str,
@@ -20,8 +21,18 @@ pub async fn import(
     let pool = db::open(cache_db)
         .await
         .with_context(|| format!("opening the cache database {cache_db}"))?;
-    let store = OsmTileStore::new(pool.clone());
+    import_into(files, &Database::Sqlite(pool), quiet).await
+}
+
+/// Imports the files into `db`. `quiet` hides the progress bars.
+pub async fn import_into(
+    files: &[PathBuf],
+    db: &Database,
+    quiet: bool,
+) -> anyhow::Result<ImportReport> {
+    let store = OsmTileStore::new(db.clone());
     let mut report = import_files(files, &store, quiet).await?;
-    report.tiles_invalidated = drop_stored(&TileStore::new(pool), &report.changed_areas).await?;
+    let tiles = TileStore::open(db, u64::MAX, "import").await?;
+    report.tiles_invalidated = drop_stored(&tiles, &report.changed_areas).await?;
     Ok(report)
 }

@@ -39,7 +39,8 @@ async fn run(command: Command) -> anyhow::Result<()> {
     match command {
         Command::Serve(args) => citymesh::server::run(*args).await,
         Command::Import(args) => {
-            let report = citymesh::import::import(&args.files, &args.cache_db, args.quiet).await?;
+            let db = args.database.open().await?;
+            let report = citymesh::import::import_into(&args.files, &db, args.quiet).await?;
             println!(
                 "imported {} buildings ({} skipped) into {} data tiles ({} changed; {} generated tiles dropped) in {}",
                 report.buildings,
@@ -47,7 +48,7 @@ async fn run(command: Command) -> anyhow::Result<()> {
                 report.data_tiles,
                 report.changed_data_tiles,
                 report.tiles_invalidated,
-                args.cache_db
+                args.database.describe()
             );
             Ok(())
         }

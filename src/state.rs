@@ -46,6 +46,8 @@ impl std::ops::Deref for AppState {
 
 /// Everything the server shares between requests.
 pub struct ServerState {
+    /// Where data tiles, generated tiles, jobs and predictions are kept.
+    pub database: crate::db::Database,
     pub dem: Arc<DemStore>,
     pub source: Arc<dyn BuildingSource>,
     pub tiles: Arc<TileCache>,

@@ -83,7 +83,7 @@ impl SceneCache {
     pub fn invalidate_area(&self, area: &citymesh_core::geo::GeoBbox) {
         let area = *area;
         if let Err(e) = self.memory.invalidate_entries_if(move |key, _| {
-            super::tile_cache::overlaps(&key.tile.bounds(), &area)
+            key.tile.bounds().intersects(&area)
         }) {
             tracing::error!("cannot invalidate cached scenes: {e}");
         }

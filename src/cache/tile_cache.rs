@@ -1,10 +1,11 @@
-//! The two-level tile cache: memory, then SQLite, then the generator, run once however many
-//! requests ask for the same tile at once.
+//! The two-level tile cache: memory, then the database (SQLite, or PostgreSQL shared by
+//! replicas), then the generator, run once however many requests ask for the same tile at once
+//! (across replicas too, on PostgreSQL).
 
 use super::key::TileKey;
 use super::region_cache::RegionCache;
 use super::scene_cache::SceneCache;
-use super::store::TileStore;
+use super::store::{GenerationLock, GenerationTurn, TileStore};
 use crate::generation_stats::GenerationStats;
 use crate::metrics::Metrics;
 use axum::http::HeaderValue;
@@ -29,7 +30,8 @@ pub struct CachedTile {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum CacheLevel {
     Memory,
-    Sqlite,
+    /// The database (`sqlite` or `postgres`).
+    Stored(&'static str),
     Generated,
 }
 
@@ -38,7 +40,7 @@ impl CacheLevel {
     pub fn name(self) -> &'static str {
         match self {
             CacheLevel::Memory => "hit",
-            CacheLevel::Sqlite => "sqlite",
+            CacheLevel::Stored(backend) => backend,
             CacheLevel::Generated => "miss",
         }
     }
@@ -72,8 +74,10 @@ pub struct TileCache {
     /// Counts invalidations: a tile whose generation saw the count change may have been built
     /// from data that changed meanwhile, so it is served but not kept.
     epoch: Arc<AtomicU64>,
-    /// Writes of generated tiles to SQLite, which run after the response left.
+    /// Writes of generated tiles to the database, which run after the response left.
     writes: TaskTracker,
+    /// How long a miss waits for another replica generating the same tile.
+    lock_wait: std::time::Duration,
     /// Box scenes, in memory; invalidated with the tiles.
     pub scenes: SceneCache,
     /// The tile regions of 3D Tiles trees (measured on the content); invalidated with the
@@ -108,6 +112,22 @@ impl TileCache {
             regions: RegionCache::default(),
             epoch,
             writes: TaskTracker::new(),
+            lock_wait: std::time::Duration::from_secs(10),
+        }
+    }
+
+    /// How long a miss waits for another replica generating the same tile before generating it
+    /// too (10 s unless set).
+    pub fn with_lock_wait(mut self, wait: std::time::Duration) -> Self {
+        self.lock_wait = wait;
+        self
+    }
+
+    /// `sqlite` or `postgres`: where tiles are stored.
+    pub fn backend(&self) -> &'static str {
+        match self.store {
+            TileStore::Sqlite(_) => "sqlite",
+            TileStore::Postgres(_) => "postgres",
         }
     }
 
@@ -130,16 +150,24 @@ impl TileCache {
 
     /// Writes a generated tile to SQLite after its response: a failed write is logged and
     /// counted, never a failed response. Not kept when the data changed since generation began.
-    fn write_behind(&self, key: TileKey, bytes: Bytes, etag: String, epoch: u64) {
+    fn write_behind(
+        &self,
+        key: TileKey,
+        bytes: Bytes,
+        etag: String,
+        epoch: u64,
+        lock: Option<GenerationLock>,
+    ) {
         let store = self.store.clone();
         let version = self.data_version.clone();
         let current = self.epoch.clone();
         let metrics = self.metrics.clone();
         self.writes.spawn(async move {
             if current.load(Ordering::SeqCst) != epoch {
+                // Dropping the lock releases any replica waiting for it: it generates its own.
                 return;
             }
-            match store.put(&key, &version, &bytes, &etag).await {
+            match store.put(&key, &version, &bytes, &etag, lock).await {
                 Err(e) => {
                     metrics.tile_store_failures.inc();
                     tracing::warn!(error = %e, tile = ?key.tile, "generated tile not stored in SQLite (served all the same)");
@@ -189,9 +217,10 @@ impl TileCache {
                         tracing::warn!("tile store read failed, generating instead: {e}");
                         None
                     });
+                let backend = self.backend();
+                self.metrics.cache("memory", false);
                 if let Some(stored) = stored {
-                    self.metrics.cache("memory", false);
-                    self.metrics.cache("sqlite", true);
+                    self.metrics.cache(backend, true);
                     level.store(1, Ordering::Relaxed);
                     return Ok::<_, E>(CachedTile {
                         etag: etag_header(Some(&stored.etag), &stored.bytes),
@@ -199,14 +228,37 @@ impl TileCache {
                         generated: None,
                     });
                 }
-                self.metrics.cache("memory", false);
-                self.metrics.cache("sqlite", false);
+                self.metrics.cache(backend, false);
+                // Another replica may be generating it: wait for its row rather than repeat it.
+                let lock = match self.store.turn(&key, &self.data_version, self.lock_wait).await {
+                    Ok(GenerationTurn::Stored { tile, waited }) => {
+                        self.metrics.generation_lock_waits(waited, false);
+                        level.store(1, Ordering::Relaxed);
+                        return Ok(CachedTile {
+                            etag: etag_header(Some(&tile.etag), &tile.bytes),
+                            bytes: tile.bytes,
+                            generated: None,
+                        });
+                    }
+                    Ok(GenerationTurn::Generate {
+                        lock,
+                        waited,
+                        timed_out,
+                    }) => {
+                        self.metrics.generation_lock_waits(waited, timed_out);
+                        lock
+                    }
+                    Err(e) => {
+                        tracing::warn!("generation lock not taken, generating all the same: {e}");
+                        None
+                    }
+                };
                 level.store(2, Ordering::Relaxed);
                 let (bytes, stats) = generate().await?;
                 let etag = etag_of(&bytes);
                 if self.epoch.load(Ordering::SeqCst) == epoch {
                     // Respond first: the row is written after.
-                    self.write_behind(key, bytes.clone(), etag.clone(), epoch);
+                    self.write_behind(key, bytes.clone(), etag.clone(), epoch, lock);
                 } else {
                     outdated.store(true, Ordering::SeqCst);
                 }
@@ -233,7 +285,7 @@ impl TileCache {
                 self.metrics.cache("memory", true);
                 CacheLevel::Memory
             }
-            1 => CacheLevel::Sqlite,
+            1 => CacheLevel::Stored(self.backend()),
             _ => CacheLevel::Generated,
         };
         // Only the request that generated the tile reports generation figures.
@@ -253,16 +305,23 @@ impl TileCache {
     pub async fn invalidate_area(&self, area: &GeoBbox) -> Result<u64, sqlx::Error> {
         self.epoch.fetch_add(1, Ordering::SeqCst);
         let removed = self.store.delete_overlapping(area).await?;
+        self.invalidate_memory_area(area);
+        Ok(removed)
+    }
+
+    /// Drops the tiles over `area` held in memory only: another replica changed the data and
+    /// deleted the stored tiles already.
+    pub fn invalidate_memory_area(&self, area: &GeoBbox) {
+        self.epoch.fetch_add(1, Ordering::SeqCst);
         self.scenes.invalidate_area(area);
         self.regions.invalidate_all();
         let area = *area;
         if let Err(e) = self
             .memory
-            .invalidate_entries_if(move |key, _| overlaps(&key.tile.bounds(), &area))
+            .invalidate_entries_if(move |key, _| key.tile.bounds().intersects(&area))
         {
             tracing::error!("cannot invalidate cached tiles: {e}");
         }
-        Ok(removed)
     }
 
     /// Drops everything held in memory (a subscriber that missed announcements).
@@ -272,12 +331,4 @@ impl TileCache {
         self.scenes.invalidate_all();
         self.regions.invalidate_all();
     }
-}
-
-/// Whether two boxes share any point (borders included).
-pub(super) fn overlaps(a: &GeoBbox, b: &GeoBbox) -> bool {
-    a.min_lon() <= b.max_lon()
-        && a.max_lon() >= b.min_lon()
-        && a.min_lat() <= b.max_lat()
-        && a.max_lat() >= b.min_lat()
 }

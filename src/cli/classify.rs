@@ -80,11 +80,11 @@ pub struct ImageryArgs {
 }
 
 impl ImageryArgs {
-    /// The source these flags describe over the cache database `pool` (fetched tiles kept
-    /// there), with `metrics`; `None` without `--imagery-url`.
+    /// The source these flags describe over the database `db` (fetched tiles kept there), with
+    /// `metrics`; `None` without `--imagery-url`.
     pub async fn open(
         &self,
-        pool: &sqlx::SqlitePool,
+        db: &crate::db::Database,
         metrics: Option<std::sync::Arc<crate::metrics::Metrics>>,
     ) -> anyhow::Result<Option<crate::imagery::Imagery>> {
         let Some(spec) = self.spec() else {
@@ -93,7 +93,7 @@ impl ImageryArgs {
         let ttl =
             std::time::Duration::from_secs_f64(self.imagery_ttl_hours.clamp(0.0, 1e6) * 3600.0);
         let cache = crate::imagery::ImageryCache::new(
-            pool.clone(),
+            db.clone(),
             ttl,
             self.imagery_cache_mb.saturating_mul(1 << 20),
         )

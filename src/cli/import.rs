@@ -10,13 +10,10 @@ pub struct ImportArgs {
     #[arg(required = true)]
     pub files: Vec<PathBuf>,
 
-    /// SQLite file to write into (the one `serve --cache-db` uses).
-    #[arg(
-        long,
-        env = "CITYMESH_CACHE_DB",
-        default_value = "data/citymesh.sqlite"
-    )]
-    pub cache_db: String,
+    /// The database to write into (the one `serve` uses): on PostgreSQL, running replicas are
+    /// told which areas changed and drop what they hold of them.
+    #[command(flatten)]
+    pub database: super::DatabaseArgs,
 
     /// No progress bars.
     #[arg(long)]

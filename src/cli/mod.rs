@@ -4,6 +4,7 @@
 use clap::{Parser, Subcommand};
 
 mod classify;
+mod database;
 mod export;
 mod import;
 mod infer_roofs;
@@ -12,6 +13,7 @@ mod scene;
 mod serve;
 
 pub use classify::*;
+pub use database::DatabaseArgs;
 pub use export::*;
 pub use import::*;
 pub use infer_roofs::*;
@@ -88,7 +90,8 @@ mod tests {
             panic!("no subcommand must mean serve");
         };
         assert_eq!(args.listen, "127.0.0.1:8080".parse().unwrap());
-        assert_eq!(args.cache_db, "data/citymesh.sqlite");
+        assert_eq!(args.database.cache_db, "data/citymesh.sqlite");
+        assert_eq!(args.database.database_url, None);
         assert_eq!((args.min_zoom, args.max_zoom), (12, 20));
     }
 

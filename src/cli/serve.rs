@@ -17,13 +17,13 @@ pub struct ServeArgs {
     #[arg(long, env = "CITYMESH_DEM_DIR", default_value = "data/dem")]
     pub dem_dir: PathBuf,
 
-    /// SQLite file for cached data and generated tiles (created if missing; `:memory:` for none).
-    #[arg(
-        long,
-        env = "CITYMESH_CACHE_DB",
-        default_value = "data/citymesh.sqlite"
-    )]
-    pub cache_db: String,
+    #[command(flatten)]
+    pub database: super::DatabaseArgs,
+
+    /// How long a tile this replica misses waits for another replica generating the same tile
+    /// (PostgreSQL only) before generating it too, milliseconds.
+    #[arg(long, env = "CITYMESH_GENERATION_LOCK_WAIT_MS", default_value_t = 10_000)]
+    pub generation_lock_wait_ms: u64,
 
     /// OSM data to serve buildings from: OSM PBF, OSM XML or Overpass JSON, optionally gzipped.
     /// Repeat the flag (or separate files with commas in CITYMESH_OSM) for several files. Without

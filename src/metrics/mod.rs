@@ -69,6 +69,65 @@ pub struct Metrics {
     pub inference_seconds: Histogram,
     /// Bytes each memory cache weighs (set when /metrics is read), and the budget.
     pub memory_cache_bytes: Family<CacheNameLabels, prometheus_client::metrics::gauge::Gauge>,
+    /// What this replica did with others on one PostgreSQL.
+    pub replicas: ReplicaMetrics,
+}
+
+/// Counters of the work replicas share (all zero on SQLite but `roof_jobs_*`).
+#[derive(Default, Clone)]
+pub struct ReplicaMetrics {
+    /// Misses that found another replica generating the same tile and waited for it.
+    pub generation_lock_waits: Counter,
+    /// ... and whose wait ran out, so they generated it too.
+    pub generation_lock_timeouts: Counter,
+    /// Data changes announced by other replicas (or `citymesh import`) and acted on.
+    pub data_change_notifications: Counter,
+    /// Times the listener for those announcements (re)connected; each drops the memory caches.
+    pub listener_connects: Counter,
+    /// Roof jobs this replica's workers claimed.
+    pub roof_jobs_claimed: Counter,
+    /// Claimed jobs whose lease had run out before they were done (another claim took them).
+    pub roof_jobs_lease_lost: Counter,
+}
+
+impl ReplicaMetrics {
+    fn register(&self, registry: &mut Registry) {
+        let counters = [
+            (
+                "generation_lock_waits",
+                "Misses that waited for another replica generating the same tile",
+                &self.generation_lock_waits,
+            ),
+            (
+                "generation_lock_timeouts",
+                "Misses whose wait for another replica ran out, so they generated the tile too",
+                &self.generation_lock_timeouts,
+            ),
+            (
+                "data_change_notifications",
+                "Data changes announced by other replicas through PostgreSQL and acted on",
+                &self.data_change_notifications,
+            ),
+            (
+                "notification_listener_connects",
+                "Connections of the data-change listener (each drops the memory caches)",
+                &self.listener_connects,
+            ),
+            (
+                "roof_jobs_claimed",
+                "Roof jobs claimed by this replica's workers",
+                &self.roof_jobs_claimed,
+            ),
+            (
+                "roof_jobs_lease_lost",
+                "Claimed roof jobs whose lease ran out before they were done",
+                &self.roof_jobs_lease_lost,
+            ),
+        ];
+        for (name, help, counter) in counters {
+            registry.register(name, help, counter.clone());
+        }
+    }
 }
 
 #[derive(Debug, Clone, Hash, PartialEq, Eq, prometheus_client::encoding::EncodeLabelSet)]
@@ -120,7 +179,7 @@ impl Default for Metrics {
         registry.register_collector(Box::new(requests.clone()));
         registry.register(
             "cache_requests",
-            "Cache lookups by level (memory, sqlite, osm_memory, osm_sqlite) and result",
+            "Cache lookups by level (memory, sqlite or postgres, osm_memory, osm_sqlite or osm_postgres) and result",
             cache.clone(),
         );
         registry.register(
@@ -129,9 +188,11 @@ impl Default for Metrics {
             upstream.clone(),
         );
         registry.register("generations", "Meshes generated", generations.clone());
+        let replicas = ReplicaMetrics::default();
+        replicas.register(&mut registry);
         registry.register(
             "tile_store_write_failures",
-            "Generated tiles not written to the SQLite cache (served all the same)",
+            "Generated tiles not written to the database (served all the same)",
             tile_store_failures.clone(),
         );
         registry.register(
@@ -151,6 +212,7 @@ impl Default for Metrics {
             imagery_fetches,
             inference_seconds,
             memory_cache_bytes,
+            replicas,
         }
     }
 }
@@ -164,6 +226,16 @@ impl Metrics {
                 result: if hit { "hit" } else { "miss" },
             })
             .inc();
+    }
+
+    /// Counts a miss's wait for another replica's generation.
+    pub fn generation_lock_waits(&self, waited: bool, timed_out: bool) {
+        if waited {
+            self.replicas.generation_lock_waits.inc();
+        }
+        if timed_out {
+            self.replicas.generation_lock_timeouts.inc();
+        }
     }
 
     /// The text exposition format.

@@ -7,12 +7,14 @@ mod parse_errors;
 
 pub use connections::ConnectionLimits;
 
-use crate::cache::{MemoryBudget, RoofPriors, TileCache, TileStore, invalidation};
+use crate::cache::{
+    MemoryBudget, RoofPriors, TileCache, TileStore, invalidation, replica_invalidation,
+};
 use crate::classifier::RoofClassifier as _;
 use crate::cli::ServeArgs;
 use crate::db;
 use crate::dem::DemStore;
-use crate::jobs::{RoofJobs, SqliteJobQueue};
+use crate::jobs::{JobQueue, RoofJobs};
 use crate::metrics::Metrics;
 use crate::source::data_tiles::{DataTileMemory, OsmTileStore};
 use crate::source::{BuildingSource, DataTileSource, FileSource, load_osm_files};
@@ -72,14 +74,17 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         !overpass_urls.is_empty(),
         "--overpass-url needs at least one endpoint"
     );
-    let pool = db::open(&args.cache_db)
-        .await
-        .with_context(|| format!("opening the cache database {}", args.cache_db))?;
+    let database = args.database.open().await?;
+    // Who this process is in the announcements it sends other replicas.
+    let replica = crate::jobs::random_token()?;
     let dem_dir = args.dem_dir.clone();
     let memory = MemoryBudget::of_megabytes(args.memory_mb);
     let dem = tokio::task::spawn_blocking(move || DemStore::open(&dem_dir, memory.dem)).await?;
     let metrics = Arc::new(Metrics::default());
-    let store = OsmTileStore::bounded(pool.clone(), args.osm_store_mb.saturating_mul(1 << 20));
+    let store = OsmTileStore::bounded(
+        database.clone(),
+        args.osm_store_mb.saturating_mul(1 << 20),
+    );
     // Nothing configured at all: a procedural city, so a fresh `cargo run` shows something.
     let demo = args.osm.is_empty()
         && args.overpass_url.is_none()
@@ -145,16 +150,28 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         height_base.name(),
         roof_method.name()
     );
-    let store =
-        TileStore::bounded(pool.clone(), args.tile_store_mb.saturating_mul(1 << 20)).await?;
-    let tiles = Arc::new(TileCache::new(
-        store,
-        memory.tiles,
-        data_version,
-        metrics.clone(),
-    ));
+    let store = TileStore::open(
+        &database,
+        args.tile_store_mb.saturating_mul(1 << 20),
+        &replica,
+    )
+    .await?;
+    let tiles = Arc::new(
+        TileCache::new(store, memory.tiles, data_version, metrics.clone())
+            .with_lock_wait(Duration::from_millis(args.generation_lock_wait_ms)),
+    );
     let priors = Arc::new(RoofPriors::new(memory.roof_priors));
     invalidation::subscribe(source.as_ref(), tiles.clone(), priors.clone());
+    if let db::Database::Postgres(pool) = &database {
+        let caches = replica_invalidation::ReplicaCaches {
+            source: source.clone(),
+            tiles: tiles.clone(),
+            priors: priors.clone(),
+            metrics: metrics.clone(),
+        };
+        replica_invalidation::listen(pool.clone(), replica.clone(), caches).await?;
+        tracing::info!(replica = %replica, "sharing PostgreSQL with other replicas");
+    }
     let slots = args
         .max_generations
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(2, std::num::NonZero::get))
@@ -187,12 +204,12 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
     };
     let imagery = args
         .imagery
-        .open(&pool, Some(metrics.clone()))
+        .open(&database, Some(metrics.clone()))
         .await?
         .map(Arc::new);
     let roofs = Arc::new(
         RoofJobs::new(
-            SqliteJobQueue::new(pool.clone()),
+            JobQueue::new(&database),
             args.imagery.imagery_id.clone(),
             args.imagery.imagery_attribution.clone(),
             model_id,
@@ -210,6 +227,7 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
     );
     let classifier = classifier.map(|c| c as Arc<dyn crate::classifier::RoofClassifier>);
     Ok(AppState::new(ServerState {
+        database,
         classifier,
         roofs,
         priors,
@@ -299,7 +317,8 @@ pub async fn run(args: ServeArgs) -> anyhow::Result<()> {
         shutdown_signal(),
     )
     .await;
-    // Tiles generated last are written to SQLite after their responses: finish those writes.
+    // Tiles generated last are written to the database after their responses: finish those
+    // writes.
     tiles.flush().await;
     for w in workers {
         w.abort();

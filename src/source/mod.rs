@@ -95,13 +95,7 @@ impl PriorScope {
     pub fn touches(&self, area: &GeoBbox) -> bool {
         match self {
             PriorScope::Everything => true,
-            PriorScope::DataTile(t) => {
-                let b = t.bounds();
-                b.min_lon() <= area.max_lon()
-                    && b.max_lon() >= area.min_lon()
-                    && b.min_lat() <= area.max_lat()
-                    && b.max_lat() >= area.min_lat()
-            }
+            PriorScope::DataTile(t) => t.bounds().intersects(area),
         }
     }
 }
@@ -116,6 +110,11 @@ pub trait BuildingSource: Send + Sync {
 
     /// Announcements of changed areas, from now on.
     fn subscribe(&self) -> broadcast::Receiver<DataChanged>;
+
+    /// Another process changed the data over `area` (`None`: anywhere), in the database this
+    /// source reads (a replica on the same PostgreSQL, or `citymesh import`): drop what is held
+    /// of it in memory. Sources that read nothing shared hold nothing to drop.
+    fn changed_elsewhere(&self, _area: Option<&GeoBbox>) {}
 
     /// Part of every generated tile's cache key: changes when the source's data changes in a way
     /// it does not announce (files edited between runs).

@@ -103,6 +103,7 @@ impl DataTileSource {
             parsed: moka::future::Cache::builder()
                 .max_capacity(memory.parsed_bytes)
                 .weigher(|_, p: &Arc<ParsedDataTile>| weight(p.byte_size()))
+                .support_invalidation_closures()
                 .build(),
             sets: moka::future::Cache::builder()
                 .max_capacity(memory.set_bytes)
@@ -367,6 +368,30 @@ impl BuildingSource for DataTileSource {
 
     fn subscribe(&self) -> broadcast::Receiver<DataChanged> {
         self.changes.subscribe()
+    }
+
+    fn changed_elsewhere(&self, area: Option<&GeoBbox>) {
+        // What is being parsed or assembled now may hold the old data: answered, not kept.
+        self.version.fetch_add(1, Ordering::SeqCst);
+        let Some(area) = area.copied() else {
+            self.parsed.invalidate_all();
+            self.sets.invalidate_all();
+            return;
+        };
+        let touched = move |t: &TileCoord| t.bounds().intersects(&area);
+        let dropped = self
+            .parsed
+            .invalidate_entries_if(move |t, _| touched(t))
+            .and_then(|_| {
+                self.sets
+                    .invalidate_entries_if(move |ts, _| ts.iter().any(touched))
+            });
+        if let Err(e) = dropped {
+            // Cannot select entries: drop them all rather than keep old data.
+            tracing::error!("cannot drop changed data tiles selectively ({e}); dropping all");
+            self.parsed.invalidate_all();
+            self.sets.invalidate_all();
+        }
     }
 
     fn fingerprint(&self) -> &str {

@@ -128,6 +128,21 @@ impl GeoBbox {
         (self.min_lon..=self.max_lon).contains(&lon) && (self.min_lat..=self.max_lat).contains(&lat)
     }
 
+    /// Whether the two boxes share any point (borders included).
+    ///
+    /// ```
+    /// use citymesh_core::geo::GeoBbox;
+    /// let a = GeoBbox::new(8.0, 49.0, 8.1, 49.1).unwrap();
+    /// assert!(a.intersects(&GeoBbox::new(8.1, 49.1, 8.2, 49.2).unwrap()));
+    /// assert!(!a.intersects(&GeoBbox::new(8.11, 49.0, 8.2, 49.1).unwrap()));
+    /// ```
+    pub fn intersects(&self, other: &GeoBbox) -> bool {
+        self.min_lon <= other.max_lon
+            && self.max_lon >= other.min_lon
+            && self.min_lat <= other.max_lat
+            && self.max_lat >= other.min_lat
+    }
+
     /// The box grown by `margin` degrees on every side, clamped to the valid range.
     ///
     /// ```

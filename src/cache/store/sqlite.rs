@@ -1,12 +1,13 @@
-//! The SQLite level of the tile cache: generated content under typed keys, so it survives a
-//! restart, bounded in bytes: past the bound the least recently used tiles are evicted.
+//! The generated tiles on SQLite (one machine): under typed keys, so they survive a restart,
+//! bounded in bytes: past the bound the least recently used tiles are evicted.
 //!
 //! A read only reads: which rows were used is noted in memory and written in one transaction
 //! off the request path (before an eviction, or when many are noted), so a cached tile never
 //! waits on, or fails because of, the database's writers. The notes are best-effort: a crash
 //! loses the order of recent use, never a tile.
 
-use super::key::{TileId, TileKey};
+use super::{StoredTile, columns, now_ms};
+use crate::cache::key::TileKey;
 use crate::db::UseNotes;
 use bytes::Bytes;
 use citymesh_core::geo::GeoBbox;
@@ -26,15 +27,8 @@ const EVICT_BATCH: i64 = 32;
 /// Uses noted before they are written (further ones start a write at once).
 const MAX_NOTED_USES: usize = 4_096;
 
-/// A stored tile: its bytes and their ETag.
-#[derive(Debug, Clone)]
-pub struct StoredTile {
-    pub bytes: Bytes,
-    pub etag: String,
-}
-
 #[derive(Clone)]
-pub struct TileStore {
+pub struct SqliteTileStore {
     pool: SqlitePool,
     /// Bytes of stored tiles at most (`u64::MAX`: unbounded).
     max_bytes: u64,
@@ -44,12 +38,6 @@ pub struct TileStore {
     evicting: Arc<tokio::sync::Mutex<()>>,
     /// Rows read since their uses were last written.
     uses: Arc<UseNotes<(TileKey, String)>>,
-}
-
-fn now_ms() -> i64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| i64::try_from(d.as_millis()).unwrap_or(i64::MAX))
 }
 
 /// The condition that selects one key's row; [`bind_key`] binds its values in this order.
@@ -76,29 +64,7 @@ fn bind_key<'q>(query: Query<'q>, key: &'q TileKey, data_version: &'q str) -> Qu
         .bind(data_version)
 }
 
-/// The key's columns: scheme, region text, z, x, y.
-fn columns(key: &TileKey) -> (&'static str, String, i64, i64, i64) {
-    let scheme = key.tile.scheme();
-    match key.tile {
-        TileId::Xyz(t) => (
-            scheme,
-            String::new(),
-            i64::from(t.z),
-            i64::from(t.x),
-            i64::from(t.y),
-        ),
-        TileId::Implicit { root, tile } => (
-            scheme,
-            root.0.to_string(),
-            i64::from(tile.level),
-            i64::from(tile.x),
-            i64::from(tile.y),
-        ),
-        TileId::Bbox(b) => (scheme, b.0.to_string(), 0, 0, 0),
-    }
-}
-
-impl TileStore {
+impl SqliteTileStore {
     /// An unbounded store (for `citymesh import`, which only deletes).
     pub fn new(pool: SqlitePool) -> Self {
         Self {

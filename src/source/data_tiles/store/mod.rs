@@ -1,13 +1,15 @@
-//! OSM data tiles kept in SQLite with their fetch time, so the server can run offline and a
-//! restart does not ask upstream again. What came from Overpass is bounded in bytes
+//! OSM data tiles kept in the database (SQLite, or PostgreSQL shared by replicas) with their
+//! fetch time, so the server can run offline and a restart does not ask upstream again. What came from Overpass is bounded in bytes
 //! (`--osm-store-mb`): past the bound the least recently used data tiles are deleted (and
 //! fetched again when needed); imported data is never evicted. Reads note their use in memory
 //! and never write.
 
-use crate::db::UseNotes;
+mod postgres;
+mod sqlite;
+
+use crate::db::{Database, UseNotes};
 use bytes::Bytes;
 use citymesh_core::geo::TileCoord;
-use sqlx::{Row, SqlitePool};
 use std::sync::Arc;
 
 /// Where a stored data tile came from.
@@ -26,6 +28,20 @@ impl DataOrigin {
     }
 }
 
+/// A stored row as read.
+fn stored_of(body: Bytes, hash: String, source: &str, fetched_at: i64) -> StoredDataTile {
+    StoredDataTile {
+        body,
+        hash,
+        origin: if source == "import" {
+            DataOrigin::Import
+        } else {
+            DataOrigin::Overpass
+        },
+        fetched_at,
+    }
+}
+
 /// One stored data tile.
 #[derive(Debug, Clone)]
 pub struct StoredDataTile {
@@ -38,7 +54,7 @@ pub struct StoredDataTile {
 
 #[derive(Clone)]
 pub struct OsmTileStore {
-    pool: SqlitePool,
+    db: Database,
     /// Bytes of Overpass data at most (`u64::MAX`: unbounded).
     max_bytes: u64,
     /// Data tiles read since their uses were last written.
@@ -67,14 +83,14 @@ pub fn now_secs() -> i64 {
 
 impl OsmTileStore {
     /// An unbounded store (for `citymesh import` and tests).
-    pub fn new(pool: SqlitePool) -> Self {
-        Self::bounded(pool, u64::MAX)
+    pub fn new(db: Database) -> Self {
+        Self::bounded(db, u64::MAX)
     }
 
     /// A store whose Overpass data is kept under `max_bytes`.
-    pub fn bounded(pool: SqlitePool, max_bytes: u64) -> Self {
+    pub fn bounded(db: Database, max_bytes: u64) -> Self {
         Self {
-            pool,
+            db,
             max_bytes,
             uses: Arc::new(UseNotes::new(MAX_NOTED_USES)),
             evicting: Arc::new(tokio::sync::Mutex::new(())),
@@ -83,12 +99,10 @@ impl OsmTileStore {
 
     /// Bytes of stored Overpass data.
     pub async fn overpass_bytes(&self) -> Result<u64, sqlx::Error> {
-        let used: i64 = sqlx::query(
-            "SELECT COALESCE(SUM(size), 0) FROM osm_data_tiles WHERE source = 'overpass'",
-        )
-        .fetch_one(&self.pool)
-        .await?
-        .get(0);
+        let used = match &self.db {
+            Database::Sqlite(p) => sqlite::overpass_bytes(p).await?,
+            Database::Postgres(p) => postgres::overpass_bytes(p).await?,
+        };
         Ok(u64::try_from(used).unwrap_or(0))
     }
 
@@ -101,32 +115,17 @@ impl OsmTileStore {
         let _one = self.evicting.lock().await;
         let uses = self.uses.take();
         if !uses.is_empty() {
-            let mut tx = self.pool.begin_with("BEGIN IMMEDIATE").await?;
-            for (t, at) in &uses {
-                sqlx::query(
-                    "UPDATE osm_data_tiles SET last_used = MAX(last_used, ?) \
-                     WHERE z = ? AND x = ? AND y = ?",
-                )
-                .bind(*at)
-                .bind(i64::from(t.z))
-                .bind(i64::from(t.x))
-                .bind(i64::from(t.y))
-                .execute(&mut *tx)
-                .await?;
+            match &self.db {
+                Database::Sqlite(p) => sqlite::write_uses(p, &uses).await?,
+                Database::Postgres(p) => postgres::write_uses(p, &uses).await?,
             }
-            tx.commit().await?;
         }
         let mut used = self.overpass_bytes().await?;
         while used > self.max_bytes {
-            let sizes: Vec<i64> = sqlx::query(
-                "DELETE FROM osm_data_tiles WHERE rowid IN (SELECT rowid FROM osm_data_tiles \
-                 WHERE source = 'overpass' ORDER BY last_used, rowid LIMIT 1) RETURNING size",
-            )
-            .fetch_all(&self.pool)
-            .await?
-            .iter()
-            .map(|r| r.get(0))
-            .collect();
+            let sizes = match &self.db {
+                Database::Sqlite(p) => sqlite::evict_least_used(p).await?,
+                Database::Postgres(p) => postgres::evict_least_used(p).await?,
+            };
             if sizes.is_empty() {
                 break;
             }
@@ -142,28 +141,15 @@ impl OsmTileStore {
     }
 
     pub async fn get(&self, t: &TileCoord) -> Result<Option<StoredDataTile>, sqlx::Error> {
-        let row = sqlx::query(
-            "SELECT body, hash, source, fetched_at FROM osm_data_tiles WHERE z = ? AND x = ? AND y = ?",
-        )
-        .bind(i64::from(t.z))
-        .bind(i64::from(t.x))
-        .bind(i64::from(t.y))
-        .fetch_optional(&self.pool)
-        .await?;
-        if row.is_some() {
+        let stored = match &self.db {
+            Database::Sqlite(p) => sqlite::get(p, t).await?,
+            Database::Postgres(p) => postgres::get(p, t).await?,
+        };
+        if stored.is_some() {
             // Written with the next stored tile; when many are noted, it is time.
             self.uses.note(*t, now_ms());
         }
-        Ok(row.map(|r| StoredDataTile {
-            body: Bytes::from(r.get::<Vec<u8>, _>(0)),
-            hash: r.get(1),
-            origin: if r.get::<String, _>(2) == "import" {
-                DataOrigin::Import
-            } else {
-                DataOrigin::Overpass
-            },
-            fetched_at: r.get(3),
-        }))
+        Ok(stored)
     }
 
     /// Stores a data tile; answers whether its content changed (new, or a different body).
@@ -174,29 +160,10 @@ impl OsmTileStore {
         origin: DataOrigin,
     ) -> Result<bool, sqlx::Error> {
         let hash = content_hash(body);
-        let previous: Option<String> =
-            sqlx::query("SELECT hash FROM osm_data_tiles WHERE z = ? AND x = ? AND y = ?")
-                .bind(i64::from(t.z))
-                .bind(i64::from(t.x))
-                .bind(i64::from(t.y))
-                .fetch_optional(&self.pool)
-                .await?
-                .map(|r| r.get(0));
-        sqlx::query(
-            "INSERT OR REPLACE INTO osm_data_tiles (z, x, y, body, hash, source, fetched_at, \
-             size, last_used) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
-        )
-        .bind(i64::from(t.z))
-        .bind(i64::from(t.x))
-        .bind(i64::from(t.y))
-        .bind(body)
-        .bind(&hash)
-        .bind(origin.as_str())
-        .bind(now_secs())
-        .bind(i64::try_from(body.len()).unwrap_or(i64::MAX))
-        .bind(now_ms())
-        .execute(&self.pool)
-        .await?;
+        let previous = match &self.db {
+            Database::Sqlite(p) => sqlite::put(p, t, body, &hash, origin, now_secs()).await?,
+            Database::Postgres(p) => postgres::put(p, t, body, &hash, origin, now_secs()).await?,
+        };
         if origin == DataOrigin::Overpass {
             self.evict_if_over().await?;
         }
@@ -205,9 +172,9 @@ impl OsmTileStore {
 
     /// Number of stored data tiles.
     pub async fn count(&self) -> Result<i64, sqlx::Error> {
-        sqlx::query("SELECT COUNT(*) FROM osm_data_tiles")
-            .fetch_one(&self.pool)
-            .await
-            .map(|r| r.get(0))
+        match &self.db {
+            Database::Sqlite(p) => sqlite::count(p).await,
+            Database::Postgres(p) => postgres::count(p).await,
+        }
     }
 }

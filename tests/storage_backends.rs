@@ -1,0 +1,346 @@
+//! The stores on both databases: every scenario runs on SQLite and on a real PostgreSQL started
+//! by the test, with the same exact answers. Then what only PostgreSQL does, with two processes'
+//! worth of pools on one server: one generation per tile, and data changes announced.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
+
+mod common;
+
+use citymesh::cache::{GenerationTurn, PgTileStore, TileKey, TileStore};
+use citymesh::db::Database;
+use citymesh::imagery::ImageryCache;
+use citymesh::source::data_tiles::{DataOrigin, OsmTileStore};
+use citymesh_core::geo::TileCoord;
+use common::postgres::Postgres;
+use std::time::Duration;
+
+/// A SQLite file in `dir`.
+async fn sqlite(dir: &tempfile::TempDir) -> Database {
+    Database::Sqlite(
+        citymesh::db::open(dir.path().join("t.sqlite").to_str().unwrap())
+            .await
+            .unwrap(),
+    )
+}
+
+async fn postgres(pg: &Postgres) -> Database {
+    Database::Postgres(citymesh::db::open_postgres(&pg.url, 8).await.unwrap())
+}
+
+/// Runs `scenario` on SQLite and on PostgreSQL; answers both transcripts.
+macro_rules! on_both {
+    ($scenario:ident) => {{
+        let dir = tempfile::tempdir().unwrap();
+        let on_sqlite = $scenario(sqlite(&dir).await).await;
+        let pg = Postgres::start();
+        let on_postgres = $scenario(postgres(&pg).await).await;
+        (on_sqlite, on_postgres)
+    }};
+}
+
+/// Tile cost on both backends: bytes and the estimated row overhead.
+const COST: u64 = 1_000 + 2_560;
+
+fn key(i: u32) -> TileKey {
+    TileKey::xyz(TileCoord::new(16, 34_290 + i, 22_493).unwrap())
+}
+
+fn tick() -> tokio::time::Sleep {
+    tokio::time::sleep(Duration::from_millis(2))
+}
+
+async fn tile_scenario(db: Database) -> Vec<String> {
+    let store = TileStore::open(&db, 40 * COST, "test").await.unwrap();
+    let get = |i: u32, v: &'static str| {
+        let store = store.clone();
+        async move { store.get(&key(i), v).await.unwrap() }
+    };
+    let mut seen = Vec::new();
+    store
+        .put(&key(0), "v1", &[1; 1_000], "a", None)
+        .await
+        .unwrap();
+    let got = get(0, "v1").await.unwrap();
+    seen.push(format!("{} {} {}", got.bytes.len(), got.bytes[0], got.etag));
+    seen.push(format!("{}", get(0, "v2").await.is_none()));
+    store
+        .put(&key(0), "v1", &[2; 1_000], "b", None)
+        .await
+        .unwrap();
+    let got = get(0, "v1").await.unwrap();
+    seen.push(format!(
+        "{} {} {}",
+        got.bytes[0],
+        got.etag,
+        store.used_bytes() == COST
+    ));
+    let area = key(0).tile.bounds();
+    seen.push(format!(
+        "{}",
+        store.delete_overlapping(&area).await.unwrap()
+    ));
+    seen.push(format!("{}", get(0, "v1").await.is_none()));
+    // Past the bound of 40 tiles, the least recently used go first, 32 at a time: 1 and 2 were
+    // read again, so 3 to 34 go.
+    for i in 1..=40 {
+        store
+            .put(&key(i), "v1", &[3; 1_000], "c", None)
+            .await
+            .unwrap();
+        tick().await;
+    }
+    get(1, "v1").await.unwrap();
+    tick().await;
+    get(2, "v1").await.unwrap();
+    tick().await;
+    store
+        .put(&key(41), "v1", &[4; 1_000], "d", None)
+        .await
+        .unwrap();
+    let mut kept = Vec::new();
+    for i in 1..=41 {
+        if get(i, "v1").await.is_some() {
+            kept.push(i);
+        }
+    }
+    seen.push(format!("{kept:?} {}", store.used_bytes() <= 40 * COST));
+    seen
+}
+
+#[tokio::test]
+async fn generated_tiles_are_stored_replaced_deleted_and_evicted_alike() {
+    let (on_sqlite, on_postgres) = on_both!(tile_scenario);
+    let expected = [
+        "1000 1 a",
+        "true",
+        "2 b true",
+        "1",
+        "true",
+        "[1, 2, 35, 36, 37, 38, 39, 40, 41] true",
+    ];
+    assert_eq!(on_sqlite, expected);
+    assert_eq!(on_postgres, expected);
+}
+
+async fn data_tile_scenario(db: Database) -> Vec<String> {
+    // Room for two 1,000-byte Overpass tiles; imported ones never count or leave.
+    let store = OsmTileStore::bounded(db, 2_500);
+    let t = |x| TileCoord::new(14, x, 5_621).unwrap();
+    let mut seen = Vec::new();
+    seen.push(format!(
+        "{}",
+        store.put(&t(0), &[1; 1_000], DataOrigin::Overpass).await.unwrap()
+    ));
+    // The same body again changes nothing; another does.
+    seen.push(format!(
+        "{}",
+        store.put(&t(0), &[1; 1_000], DataOrigin::Overpass).await.unwrap()
+    ));
+    seen.push(format!(
+        "{}",
+        store.put(&t(0), &[2; 1_000], DataOrigin::Overpass).await.unwrap()
+    ));
+    store
+        .put(&t(9), &[9; 5_000], DataOrigin::Import)
+        .await
+        .unwrap();
+    let got = store.get(&t(0)).await.unwrap().unwrap();
+    seen.push(format!(
+        "{} {} {:?} {}",
+        got.body[0],
+        got.hash,
+        got.origin,
+        got.fetched_at > 1_700_000_000
+    ));
+    tokio::time::sleep(Duration::from_millis(1_100)).await;
+    store
+        .put(&t(1), &[3; 1_000], DataOrigin::Overpass)
+        .await
+        .unwrap();
+    tokio::time::sleep(Duration::from_millis(1_100)).await;
+    // Tile 0 is read again: tile 1 is now the least recently used, and leaves when 2 comes.
+    store.get(&t(0)).await.unwrap().unwrap();
+    tokio::time::sleep(Duration::from_millis(1_100)).await;
+    store
+        .put(&t(2), &[4; 1_000], DataOrigin::Overpass)
+        .await
+        .unwrap();
+    let mut kept = Vec::new();
+    for x in 0..10 {
+        if store.get(&t(x)).await.unwrap().is_some() {
+            kept.push(x);
+        }
+    }
+    seen.push(format!(
+        "{kept:?} {} {}",
+        store.overpass_bytes().await.unwrap(),
+        store.count().await.unwrap()
+    ));
+    seen
+}
+
+#[tokio::test]
+async fn data_tiles_are_stored_compared_and_evicted_alike() {
+    let (on_sqlite, on_postgres) = on_both!(data_tile_scenario);
+    let hash = citymesh::source::data_tiles::content_hash(&[2; 1_000]);
+    let expected = [
+        "true".to_owned(),
+        "false".to_owned(),
+        "true".to_owned(),
+        format!("2 {hash} Overpass true"),
+        "[0, 2, 9] 2000 3".to_owned(),
+    ];
+    assert_eq!(on_sqlite, expected);
+    assert_eq!(on_postgres, expected);
+}
+
+async fn imagery_scenario(db: Database) -> Vec<String> {
+    let cache = ImageryCache::new(db.clone(), Duration::from_secs(3600), 10_000)
+        .await
+        .unwrap();
+    let t = |x| TileCoord::new(18, x, 7).unwrap();
+    for x in 0..4 {
+        cache.put("a", t(x), &[x as u8; 3000]).await.unwrap();
+        // Tile 0 is used again before each put: it stays.
+        assert!(cache.get("a", t(0)).await.unwrap().is_some());
+        tick().await;
+    }
+    let mut seen = Vec::new();
+    for x in 0..4 {
+        let got = cache.get("a", t(x)).await.unwrap();
+        seen.push(format!("{x}: {:?}", got.map(|b| (b.len(), b[0]))));
+    }
+    // Another imagery never sees these tiles; past the time to live, a tile is not served.
+    seen.push(format!("{:?}", cache.get("b", t(0)).await.unwrap()));
+    let short = ImageryCache::new(db, Duration::from_millis(0), 10_000)
+        .await
+        .unwrap();
+    tick().await;
+    seen.push(format!("{:?}", short.get("a", t(0)).await.unwrap()));
+    seen
+}
+
+#[tokio::test]
+async fn imagery_tiles_expire_and_the_least_recently_used_go_first_alike() {
+    let (on_sqlite, on_postgres) = on_both!(imagery_scenario);
+    // 12,000 bytes went in, over the 10,000 bound: the least recently used (tile 1) left.
+    let expected = [
+        "0: Some((3000, 0))",
+        "1: None",
+        "2: Some((3000, 2))",
+        "3: Some((3000, 3))",
+        "None",
+        "None",
+    ];
+    assert_eq!(on_sqlite, expected);
+    assert_eq!(on_postgres, expected);
+}
+
+/// Two replicas' stores on one PostgreSQL (separate pools, as separate processes have).
+async fn two_replicas(pg: &Postgres) -> (TileStore, TileStore) {
+    let a = citymesh::db::open_postgres(&pg.url, 4).await.unwrap();
+    let b = citymesh::db::open_postgres(&pg.url, 4).await.unwrap();
+    (
+        TileStore::Postgres(PgTileStore::bounded(a, u64::MAX, "a").await.unwrap()),
+        TileStore::Postgres(PgTileStore::bounded(b, u64::MAX, "b").await.unwrap()),
+    )
+}
+
+#[tokio::test]
+async fn a_replica_missing_a_tile_another_generates_waits_for_its_row() {
+    let pg = Postgres::start();
+    let (a, b) = two_replicas(&pg).await;
+    let k = key(7);
+    let GenerationTurn::Generate {
+        lock: Some(lock),
+        waited: false,
+        timed_out: false,
+    } = a.turn(&k, "v1", Duration::from_secs(5)).await.unwrap()
+    else {
+        panic!("the first to miss generates, holding the lock");
+    };
+    // B misses while A generates: it waits for A's row instead of generating.
+    let waiting = tokio::spawn({
+        let b = b.clone();
+        async move { b.turn(&k, "v1", Duration::from_secs(5)).await.unwrap() }
+    });
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    assert!(!waiting.is_finished(), "B must wait while A holds the lock");
+    a.put(&k, "v1", b"the tile", "\"e1\"", Some(lock))
+        .await
+        .unwrap();
+    match waiting.await.unwrap() {
+        GenerationTurn::Stored { tile, waited } => {
+            assert!(waited);
+            assert_eq!((&tile.bytes[..], tile.etag.as_str()), (&b"the tile"[..], "\"e1\""));
+        }
+        GenerationTurn::Generate { .. } => panic!("B generated a tile A had written"),
+    }
+    // Once written, the turn answers the row at once.
+    assert!(matches!(
+        b.turn(&k, "v1", Duration::from_secs(5)).await.unwrap(),
+        GenerationTurn::Stored { waited: false, .. }
+    ));
+}
+
+#[tokio::test]
+async fn a_replica_whose_wait_runs_out_or_whose_holder_gives_up_generates_itself() {
+    let pg = Postgres::start();
+    let (a, b) = two_replicas(&pg).await;
+    let k = key(8);
+    let GenerationTurn::Generate {
+        lock: Some(lock), ..
+    } = a.turn(&k, "v1", Duration::from_secs(5)).await.unwrap()
+    else {
+        panic!("the first to miss generates");
+    };
+    // A takes too long: B's 100 ms wait runs out and B generates, without the lock.
+    assert!(matches!(
+        b.turn(&k, "v1", Duration::from_millis(100)).await.unwrap(),
+        GenerationTurn::Generate {
+            lock: None,
+            waited: true,
+            timed_out: true
+        }
+    ));
+    // A gives up (its generation failed): a waiting B gets the lock and generates.
+    let waiting = tokio::spawn({
+        let b = b.clone();
+        async move { b.turn(&k, "v1", Duration::from_secs(5)).await.unwrap() }
+    });
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    drop(lock);
+    assert!(matches!(
+        waiting.await.unwrap(),
+        GenerationTurn::Generate {
+            lock: Some(_),
+            waited: true,
+            timed_out: false
+        }
+    ));
+}
+
+#[tokio::test]
+async fn deleting_tiles_over_an_area_tells_every_listening_replica_in_the_same_transaction() {
+    let pg = Postgres::start();
+    let (a, b) = two_replicas(&pg).await;
+    let TileStore::Postgres(_) = &b else {
+        unreachable!()
+    };
+    let pool = citymesh::db::open_postgres(&pg.url, 2).await.unwrap();
+    let mut listener = sqlx::postgres::PgListener::connect_with(&pool).await.unwrap();
+    listener
+        .listen(citymesh::cache::DATA_CHANGED_CHANNEL)
+        .await
+        .unwrap();
+    a.put(&key(3), "v1", b"x", "\"x\"", None).await.unwrap();
+    let area = key(3).tile.bounds();
+    assert_eq!(a.delete_overlapping(&area).await.unwrap(), 1);
+    let note = tokio::time::timeout(Duration::from_secs(5), listener.recv())
+        .await
+        .unwrap()
+        .unwrap();
+    let note = citymesh::cache::DataChangedNote::parse(note.payload()).unwrap();
+    assert_eq!((note.sender.as_str(), note.area), ("a", area));
+    // The tile was gone for B by then.
+    assert!(b.get(&key(3), "v1").await.unwrap().is_none());
+}
