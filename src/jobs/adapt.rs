@@ -6,9 +6,9 @@
 //! follow it and nothing reports "running" after a restart.
 
 use super::queue::{JobError, NewJob};
+use super::rows::now_ms;
 use super::select::{Selection, select_buildings};
 use super::service::RoofJobs;
-use super::sqlite::now_ms;
 use crate::classifier::head::{AdaptError, MIN_PER_CLASS, RoofHead, fit_head};
 use crate::classifier::onnx::OnnxClassifier;
 use crate::imagery::{Imagery, TileMemo, crop_footprint};

@@ -10,6 +10,7 @@
 pub mod adapt;
 mod index;
 mod queue;
+mod rows;
 mod select;
 mod service;
 mod sqlite;
