@@ -1,14 +1,16 @@
 //! Queued roof-classification jobs (docs/method.md section 11): batches of buildings to classify,
-//! kept in SQLite so nothing is lost on a crash, claimed by workers under a lease so a worker that
-//! dies leaves its jobs to another, and the predictions they store.
+//! kept in the database so nothing is lost on a crash, claimed by workers under a lease so a
+//! worker that dies leaves its jobs to another, and the predictions they store.
 //!
-//! [`RoofJobQueue`] is the queue's contract; [`SqliteJobQueue`] implements it on the cache
-//! database (a PostgreSQL queue would implement the same methods with `FOR UPDATE SKIP LOCKED`).
-//! [`worker`] runs jobs: imagery, crop, inference, store. [`RoofJobs`] is the server's side:
-//! the queue, the workers, and the [`PredictionIndex`] that `roofs=classified` tiles read.
+//! [`RoofJobQueue`] is the queue's contract. [`SqliteJobQueue`] implements it on the cache
+//! database, [`PgJobQueue`] on a PostgreSQL server that many replicas share (claims take their
+//! rows with `FOR UPDATE SKIP LOCKED`). [`worker`] runs jobs: imagery, crop, inference, store.
+//! [`RoofJobs`] is the server's side: the queue, the workers, and the [`PredictionIndex`] that
+//! `roofs=classified` tiles read.
 
 pub mod adapt;
 mod index;
+mod postgres;
 mod queue;
 mod rows;
 mod select;
@@ -18,6 +20,7 @@ mod token;
 pub mod worker;
 
 pub use index::{IndexedPrediction, PredictionIndex};
+pub use postgres::PgJobQueue;
 pub use queue::{
     BatchCounts, BatchProgress, ClaimedJob, JobError, NewJob, RoofJobQueue, StoredPrediction,
     footprint_hash, ring_bounds,
