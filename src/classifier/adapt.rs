@@ -67,7 +67,7 @@ pub async fn run_osm(args: &AdaptRoofsArgs) -> anyhow::Result<bool> {
         anyhow::anyhow!("--imagery-url is required with --osm: the imagery to adapt to")
     })?;
     let counts = class_counts(&examples);
-    let store = AdaptationStore::new(pool);
+    let store = AdaptationStore::new(crate::db::Database::Sqlite(pool));
     let id = crate::jobs::random_token()?;
     let area = bbox.map_or_else(|| "files".to_owned(), |b| b.to_string());
     store

@@ -5,7 +5,7 @@ use super::{Prediction, RoofClassifier, load_from_args};
 use crate::cli::ClassifyArgs;
 use crate::jobs::worker::{WorkerConfig, run_round};
 use crate::jobs::{
-    RoofJobQueue, Selection, SqliteJobQueue, StoredPrediction, footprint_hash, select_buildings,
+    JobQueue, RoofJobQueue, Selection, StoredPrediction, footprint_hash, select_buildings,
 };
 use crate::source::read_osm_file;
 use citymesh_core::building::roof::RoofShape;
@@ -50,7 +50,7 @@ pub async fn run(args: &ClassifyArgs) -> anyhow::Result<String> {
     let imagery = args.imagery.open(&pool, None).await?.ok_or_else(|| {
         anyhow::anyhow!("--imagery-url is required: the imagery to classify from")
     })?;
-    let queue = SqliteJobQueue::new(pool);
+    let queue = JobQueue::new(&crate::db::Database::Sqlite(pool));
     let selection = if args.all {
         Selection::All
     } else {

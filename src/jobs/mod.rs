@@ -4,11 +4,12 @@
 //!
 //! [`RoofJobQueue`] is the queue's contract. [`SqliteJobQueue`] implements it on the cache
 //! database, [`PgJobQueue`] on a PostgreSQL server that many replicas share (claims take their
-//! rows with `FOR UPDATE SKIP LOCKED`). [`worker`] runs jobs: imagery, crop, inference, store.
-//! [`RoofJobs`] is the server's side: the queue, the workers, and the [`PredictionIndex`] that
-//! `roofs=classified` tiles read.
+//! rows with `FOR UPDATE SKIP LOCKED`); [`JobQueue`] is whichever the [`crate::db::Database`]
+//! is. [`worker`] runs jobs: imagery, crop, inference, store. [`RoofJobs`] is the server's side:
+//! the queue, the workers, and the [`PredictionIndex`] that `roofs=classified` tiles read.
 
 pub mod adapt;
+mod backend;
 mod index;
 mod postgres;
 mod queue;
@@ -19,6 +20,7 @@ mod sqlite;
 mod token;
 pub mod worker;
 
+pub use backend::JobQueue;
 pub use index::{IndexedPrediction, PredictionIndex};
 pub use postgres::PgJobQueue;
 pub use queue::{

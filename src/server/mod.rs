@@ -12,7 +12,7 @@ use crate::classifier::RoofClassifier as _;
 use crate::cli::ServeArgs;
 use crate::db;
 use crate::dem::DemStore;
-use crate::jobs::{RoofJobs, SqliteJobQueue};
+use crate::jobs::{JobQueue, RoofJobs};
 use crate::metrics::Metrics;
 use crate::source::data_tiles::{DataTileMemory, OsmTileStore};
 use crate::source::{BuildingSource, DataTileSource, FileSource, load_osm_files};
@@ -192,7 +192,7 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         .map(Arc::new);
     let roofs = Arc::new(
         RoofJobs::new(
-            SqliteJobQueue::new(pool.clone()),
+            JobQueue::new(&db::Database::Sqlite(pool.clone())),
             args.imagery.imagery_id.clone(),
             args.imagery.imagery_attribution.clone(),
             model_id,
