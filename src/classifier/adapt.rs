@@ -62,12 +62,12 @@ pub async fn run_osm(args: &AdaptRoofsArgs) -> anyhow::Result<bool> {
         })
     });
     let classifier = load_from_args(&args.classifier)?;
-    let pool = crate::db::open(&args.cache_db).await?;
-    let imagery = args.imagery.open(&pool, None).await?.ok_or_else(|| {
+    let db = crate::db::Database::Sqlite(crate::db::open(&args.cache_db).await?);
+    let imagery = args.imagery.open(&db, None).await?.ok_or_else(|| {
         anyhow::anyhow!("--imagery-url is required with --osm: the imagery to adapt to")
     })?;
     let counts = class_counts(&examples);
-    let store = AdaptationStore::new(pool);
+    let store = AdaptationStore::new(db);
     let id = crate::jobs::random_token()?;
     let area = bbox.map_or_else(|| "files".to_owned(), |b| b.to_string());
     store

@@ -5,7 +5,7 @@ use super::{Prediction, RoofClassifier, load_from_args};
 use crate::cli::ClassifyArgs;
 use crate::jobs::worker::{WorkerConfig, run_round};
 use crate::jobs::{
-    RoofJobQueue, Selection, SqliteJobQueue, StoredPrediction, footprint_hash, select_buildings,
+    JobQueue, RoofJobQueue, Selection, StoredPrediction, footprint_hash, select_buildings,
 };
 use crate::source::read_osm_file;
 use citymesh_core::building::roof::RoofShape;
@@ -46,11 +46,11 @@ pub async fn run(args: &ClassifyArgs) -> anyhow::Result<String> {
         });
     }
     let classifier: Arc<dyn RoofClassifier> = load_from_args(&args.classifier)?;
-    let pool = crate::db::open(&args.cache_db).await?;
-    let imagery = args.imagery.open(&pool, None).await?.ok_or_else(|| {
+    let db = crate::db::Database::Sqlite(crate::db::open(&args.cache_db).await?);
+    let imagery = args.imagery.open(&db, None).await?.ok_or_else(|| {
         anyhow::anyhow!("--imagery-url is required: the imagery to classify from")
     })?;
-    let queue = SqliteJobQueue::new(pool);
+    let queue = JobQueue::new(&db);
     let selection = if args.all {
         Selection::All
     } else {

@@ -73,6 +73,7 @@ pub async fn open(location: &str) -> anyhow::Result<SqlitePool> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::db::is_busy;
     use sqlx::Connection;
 
     #[tokio::test]

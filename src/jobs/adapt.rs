@@ -1,22 +1,23 @@
 //! Adapting the roof classifier to the served imagery from OpenStreetMap's own tags
 //! (docs/method.md section 13): the buildings of a box that carry a `roof:shape` of the three
 //! classes are cropped from the imagery as any building is, the model embeds them, and a head is
-//! fitted, cross-validated and stored in the cache database (`roof_adaptations`); when fitted, it
+//! fitted, cross-validated and stored in the server's database (`roof_adaptations`); when fitted, it
 //! is put in use for this imagery. Progress is kept in the database as it goes, so a client can
 //! follow it and nothing reports "running" after a restart.
 
 use super::queue::{JobError, NewJob};
+use super::rows::now_ms;
 use super::select::{Selection, select_buildings};
 use super::service::RoofJobs;
-use super::sqlite::now_ms;
 use crate::classifier::head::{AdaptError, MIN_PER_CLASS, RoofHead, fit_head};
 use crate::classifier::onnx::OnnxClassifier;
+use crate::db::Database;
 use crate::imagery::{Imagery, TileMemo, crop_footprint};
 use citymesh_core::building::roof::RoofShape;
 use citymesh_core::osm::BuildingRecord;
 use citymesh_core::roof_image::{Crop, RoofClass};
 use serde::Serialize;
-use sqlx::{Row, SqlitePool};
+use sqlx::{ColumnIndex, Decode, Row, Type};
 use std::sync::Arc;
 use utoipa::ToSchema;
 
@@ -123,38 +124,48 @@ pub fn class_counts(examples: &[AdaptExample]) -> [usize; 3] {
     counts
 }
 
-/// The adaptations in the cache database.
+/// The adaptations in the server's database.
 #[derive(Clone)]
 pub struct AdaptationStore {
-    pool: SqlitePool,
+    db: Database,
+}
+
+/// Runs `$body` with `$pool` bound to the pool of whichever backend `$db` is: the statements here
+/// read the same on both (`$n` placeholders, which SQLite takes too).
+macro_rules! on_pool {
+    ($db:expr, $pool:ident => $body:expr) => {
+        match $db {
+            Database::Sqlite($pool) => $body,
+            Database::Postgres($pool) => $body,
+        }
+    };
 }
 
 impl AdaptationStore {
-    pub fn new(pool: SqlitePool) -> Self {
-        Self { pool }
+    pub fn new(db: Database) -> Self {
+        Self { db }
     }
 
     /// Marks adaptations left running by a process that stopped as failed.
     pub async fn interrupt_running(&self) -> Result<u64, JobError> {
-        let done = sqlx::query(
-            "UPDATE roof_adaptations SET state = 'failed', error = 'interrupted by a restart; \
-             ask again', updated_at = ? WHERE state = 'running'",
-        )
-        .bind(now_ms())
-        .execute(&self.pool)
-        .await?;
-        Ok(done.rows_affected())
+        let sql = "UPDATE roof_adaptations SET state = 'failed', error = 'interrupted by a \
+                   restart; ask again', updated_at = $1 WHERE state = 'running'";
+        Ok(on_pool!(&self.db, pool => sqlx::query(sql)
+            .bind(now_ms())
+            .execute(pool)
+            .await?
+            .rows_affected()))
     }
 
     /// Whether an adaptation is running for this imagery.
     pub async fn running(&self, imagery_id: &str) -> Result<Option<String>, JobError> {
-        let row = sqlx::query(
-            "SELECT id FROM roof_adaptations WHERE imagery_id = ? AND state = 'running' LIMIT 1",
-        )
-        .bind(imagery_id)
-        .fetch_optional(&self.pool)
-        .await?;
-        Ok(row.map(|r| r.get::<String, _>(0)))
+        let sql =
+            "SELECT id FROM roof_adaptations WHERE imagery_id = $1 AND state = 'running' LIMIT 1";
+        Ok(on_pool!(&self.db, pool => sqlx::query(sql)
+            .bind(imagery_id)
+            .fetch_optional(pool)
+            .await?
+            .map(|r| r.get::<String, _>(0))))
     }
 
     pub async fn create(
@@ -166,32 +177,34 @@ impl AdaptationStore {
         examples: [usize; 3],
     ) -> Result<(), JobError> {
         let now = now_ms();
-        sqlx::query(
-            "INSERT INTO roof_adaptations (id, created_at, updated_at, bbox, imagery_id, model_id, \
-             state, examples) VALUES (?, ?, ?, ?, ?, ?, 'running', ?)",
-        )
-        .bind(id)
-        .bind(now)
-        .bind(now)
-        .bind(bbox)
-        .bind(imagery_id)
-        .bind(model_id)
-        .bind(serde_json::to_string(&examples).unwrap_or_default())
-        .execute(&self.pool)
-        .await?;
+        let sql = "INSERT INTO roof_adaptations (id, created_at, updated_at, bbox, imagery_id, \
+                   model_id, state, examples) VALUES ($1, $2, $3, $4, $5, $6, 'running', $7)";
+        let examples = serde_json::to_string(&examples).unwrap_or_default();
+        on_pool!(&self.db, pool => sqlx::query(sql)
+            .bind(id)
+            .bind(now)
+            .bind(now)
+            .bind(bbox)
+            .bind(imagery_id)
+            .bind(model_id)
+            .bind(&examples)
+            .execute(pool)
+            .await
+            .map(drop))?;
         Ok(())
     }
 
     async fn progress(&self, id: &str, cropped: usize, failed: usize) -> Result<(), JobError> {
-        sqlx::query(
-            "UPDATE roof_adaptations SET cropped = ?, crop_failed = ?, updated_at = ? WHERE id = ?",
-        )
-        .bind(cropped as i64)
-        .bind(failed as i64)
-        .bind(now_ms())
-        .bind(id)
-        .execute(&self.pool)
-        .await?;
+        let sql = "UPDATE roof_adaptations SET cropped = $1, crop_failed = $2, updated_at = $3 \
+                   WHERE id = $4";
+        on_pool!(&self.db, pool => sqlx::query(sql)
+            .bind(cropped as i64)
+            .bind(failed as i64)
+            .bind(now_ms())
+            .bind(id)
+            .execute(pool)
+            .await
+            .map(drop))?;
         Ok(())
     }
 
@@ -219,59 +232,34 @@ impl AdaptationStore {
         head: Option<&RoofHead>,
         error: Option<&str>,
     ) -> Result<(), JobError> {
-        sqlx::query(
-            "UPDATE roof_adaptations SET state = ?, head = ?, head_id = ?, report = ?, error = ?, \
-             updated_at = ? WHERE id = ?",
-        )
-        .bind(state)
-        .bind(head.and_then(|h| serde_json::to_string(h).ok()))
-        .bind(head.map(RoofHead::id))
-        .bind(head.and_then(|h| serde_json::to_string(&h.report).ok()))
-        .bind(error)
-        .bind(now_ms())
-        .bind(id)
-        .execute(&self.pool)
-        .await?;
+        let sql = "UPDATE roof_adaptations SET state = $1, head = $2, head_id = $3, report = $4, \
+                   error = $5, updated_at = $6 WHERE id = $7";
+        let head_json = head.and_then(|h| serde_json::to_string(h).ok());
+        let head_id = head.map(RoofHead::id);
+        let report = head.and_then(|h| serde_json::to_string(&h.report).ok());
+        on_pool!(&self.db, pool => sqlx::query(sql)
+            .bind(state)
+            .bind(&head_json)
+            .bind(&head_id)
+            .bind(&report)
+            .bind(error)
+            .bind(now_ms())
+            .bind(id)
+            .execute(pool)
+            .await
+            .map(drop))?;
         Ok(())
     }
 
     pub async fn get(&self, id: &str) -> Result<Option<AdaptationStatus>, JobError> {
-        let Some(r) = sqlx::query(
-            "SELECT id, state, bbox, imagery_id, model_id, examples, cropped, crop_failed, \
-             head_id, report, error FROM roof_adaptations WHERE id = ?",
-        )
-        .bind(id)
-        .fetch_optional(&self.pool)
-        .await?
-        else {
-            return Ok(None);
-        };
-        let examples: [usize; 3] = serde_json::from_str(&r.get::<String, _>(5)).unwrap_or_default();
-        let examples = ClassCounts::of(examples);
-        let cropped = r.get::<i64, _>(6).max(0) as u64;
-        let crop_failed = r.get::<i64, _>(7).max(0) as u64;
-        let state: String = r.get(1);
-        let percent = if state == "done" || examples.total() == 0 {
-            100.0
-        } else {
-            100.0 * (cropped + crop_failed) as f64 / examples.total() as f64
-        };
-        Ok(Some(AdaptationStatus {
-            id: r.get(0),
-            state,
-            bbox: r.get(2),
-            imagery_id: r.get(3),
-            model_id: r.get(4),
-            examples,
-            cropped,
-            crop_failed,
-            percent,
-            head_id: r.get(8),
-            report: r
-                .get::<Option<String>, _>(9)
-                .and_then(|t| serde_json::from_str(&t).ok()),
-            error: r.get(10),
-        }))
+        let sql = "SELECT id, state, bbox, imagery_id, model_id, examples, cropped, crop_failed, \
+                   head_id, report, error FROM roof_adaptations WHERE id = $1";
+        Ok(on_pool!(&self.db, pool => sqlx::query(sql)
+            .bind(id)
+            .fetch_optional(pool)
+            .await?
+            .as_ref()
+            .map(status_of_row)))
     }
 
     /// The newest head fitted for this imagery and model.
@@ -280,20 +268,57 @@ impl AdaptationStore {
         imagery_id: &str,
         model_id: &str,
     ) -> Result<Option<RoofHead>, JobError> {
-        let row = sqlx::query(
-            "SELECT head FROM roof_adaptations WHERE imagery_id = ? AND model_id = ? AND \
-             state = 'done' AND head IS NOT NULL ORDER BY updated_at DESC LIMIT 1",
-        )
-        .bind(imagery_id)
-        .bind(model_id)
-        .fetch_optional(&self.pool)
-        .await?;
-        let Some(row) = row else {
+        let sql = "SELECT head FROM roof_adaptations WHERE imagery_id = $1 AND model_id = $2 \
+                   AND state = 'done' AND head IS NOT NULL ORDER BY updated_at DESC LIMIT 1";
+        let head = on_pool!(&self.db, pool => sqlx::query(sql)
+            .bind(imagery_id)
+            .bind(model_id)
+            .fetch_optional(pool)
+            .await?
+            .map(|r| r.get::<String, _>(0)));
+        let Some(head) = head else {
             return Ok(None);
         };
-        let head: RoofHead = serde_json::from_str(&row.get::<String, _>(0))
+        let head: RoofHead = serde_json::from_str(&head)
             .map_err(|e| JobError::Corrupt(format!("stored head: {e}")))?;
         Ok(Some(head))
+    }
+}
+
+/// An adaptation from a row of `id, state, bbox, imagery_id, model_id, examples, cropped,
+/// crop_failed, head_id, report, error`, on either backend.
+fn status_of_row<'r, R: Row>(r: &'r R) -> AdaptationStatus
+where
+    usize: ColumnIndex<R>,
+    i64: Decode<'r, R::Database> + Type<R::Database>,
+    String: Decode<'r, R::Database> + Type<R::Database>,
+    Option<String>: Decode<'r, R::Database> + Type<R::Database>,
+{
+    let examples: [usize; 3] = serde_json::from_str(&r.get::<String, _>(5)).unwrap_or_default();
+    let examples = ClassCounts::of(examples);
+    let cropped = r.get::<i64, _>(6).max(0) as u64;
+    let crop_failed = r.get::<i64, _>(7).max(0) as u64;
+    let state: String = r.get(1);
+    let percent = if state == "done" || examples.total() == 0 {
+        100.0
+    } else {
+        100.0 * (cropped + crop_failed) as f64 / examples.total() as f64
+    };
+    AdaptationStatus {
+        id: r.get(0),
+        state,
+        bbox: r.get(2),
+        imagery_id: r.get(3),
+        model_id: r.get(4),
+        examples,
+        cropped,
+        crop_failed,
+        percent,
+        head_id: r.get(8),
+        report: r
+            .get::<Option<String>, _>(9)
+            .and_then(|t| serde_json::from_str(&t).ok()),
+        error: r.get(10),
     }
 }
 

@@ -1,10 +1,10 @@
-//! The server's roof jobs: the queue on the cache database, the predictions tiles use, and the
+//! The server's roof jobs: the queue on the server's database, the predictions tiles use, and the
 //! workers that run jobs when a classifier and an imagery service are configured.
 
 use super::adapt::AdaptationStore;
+use super::backend::JobQueue;
 use super::index::PredictionIndex;
 use super::queue::{JobError, RoofJobQueue};
-use super::sqlite::SqliteJobQueue;
 use super::worker::{CurrentModel, RoundReport, SharedOnDone, WorkerConfig, run_worker};
 use crate::classifier::RoofClassifier;
 use crate::classifier::head::{HeadedClassifier, RoofHead};
@@ -14,7 +14,7 @@ use crate::metrics::{Metrics, StateLabels};
 use std::sync::{Arc, RwLock};
 
 pub struct RoofJobs {
-    pub queue: SqliteJobQueue,
+    pub queue: JobQueue,
     /// The imagery predictions are made from (and looked up by).
     pub imagery_id: String,
     pub imagery_attribution: String,
@@ -54,7 +54,7 @@ impl RoofJobs {
     /// Loads the stored predictions of `imagery_id` and `model_id`.
     #[allow(clippy::too_many_arguments)]
     pub async fn new(
-        queue: SqliteJobQueue,
+        queue: JobQueue,
         imagery_id: String,
         imagery_attribution: String,
         model_id: String,
@@ -65,7 +65,7 @@ impl RoofJobs {
     ) -> Result<Self, JobError> {
         let index = Arc::new(PredictionIndex::load(&queue, &imagery_id, &model_id).await?);
         let classifier = base.clone().map(|b| b as Arc<dyn RoofClassifier>);
-        let adaptations = AdaptationStore::new(queue.pool().clone());
+        let adaptations = AdaptationStore::new(queue.database());
         let interrupted = adaptations.interrupt_running().await?;
         if interrupted > 0 {
             tracing::warn!(interrupted, "roof adaptations interrupted by a restart");

@@ -4,6 +4,10 @@ use super::queue::{
     BatchCounts, BatchProgress, ClaimedJob, JobError, MAX_ATTEMPTS, NewJob, RoofJobQueue,
     StoredPrediction, footprint_hash, ring_bounds,
 };
+use super::rows::{
+    ENQUEUE_CHUNK, claimed_of_row, empty_states, lease_end, now_ms, prediction_columns,
+    prediction_of_row, random_claim, ring_json,
+};
 use super::token::random_token;
 use crate::classifier::Prediction;
 use citymesh_core::geo::GeoBbox;
@@ -11,55 +15,9 @@ use sqlx::{Row, SqlitePool};
 use std::collections::BTreeMap;
 use std::time::Duration;
 
-/// Jobs upserted per transaction when a batch is queued.
-const ENQUEUE_CHUNK: usize = 256;
-
-/// The columns [`prediction_of_row`] reads.
-macro_rules! prediction_columns {
-    () => {
-        "SELECT osm_id, footprint_hash, imagery_id, model_id, p_flat, p_gabled, p_hipped, \
-         footprint, work_ms FROM roof_predictions"
-    };
-}
-
 #[derive(Clone)]
 pub struct SqliteJobQueue {
     pool: SqlitePool,
-}
-
-/// Milliseconds since the Unix epoch.
-/// When a lease taken at `now` (ms) for `lease` ends.
-fn lease_end(now: i64, lease: Duration) -> i64 {
-    now.saturating_add(i64::try_from(lease.as_millis()).unwrap_or(i64::MAX))
-}
-
-/// A random claim number.
-fn random_claim() -> Result<i64, JobError> {
-    let mut bytes = [0u8; 8];
-    getrandom::fill(&mut bytes).map_err(|e| JobError::Corrupt(format!("no randomness: {e}")))?;
-    Ok(i64::from_le_bytes(bytes))
-}
-
-pub(super) fn now_ms() -> i64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| i64::try_from(d.as_millis()).unwrap_or(i64::MAX))
-}
-
-fn ring_json(ring: &[[f64; 2]]) -> String {
-    serde_json::to_string(ring).unwrap_or_else(|_| "[]".into())
-}
-
-fn parse_ring(text: &str) -> Result<Vec<[f64; 2]>, JobError> {
-    serde_json::from_str(text).map_err(|e| JobError::Corrupt(e.to_string()))
-}
-
-/// Every state at 0.
-fn empty_states() -> BTreeMap<String, u64> {
-    ["queued", "running", "done", "failed", "cancelled"]
-        .iter()
-        .map(|s| ((*s).to_owned(), 0))
-        .collect()
 }
 
 impl SqliteJobQueue {
@@ -174,19 +132,8 @@ impl RoofJobQueue for SqliteJobQueue {
         .fetch_all(&self.pool)
         .await?;
         let mut jobs = rows
-            .into_iter()
-            .map(|r| {
-                Ok(ClaimedJob {
-                    id: r.get(0),
-                    osm_id: r.get(1),
-                    footprint_hash: r.get(2),
-                    imagery_id: r.get(3),
-                    model_id: r.get(4),
-                    footprint: parse_ring(&r.get::<String, _>(5))?,
-                    attempts: r.get(6),
-                    claim,
-                })
-            })
+            .iter()
+            .map(|r| claimed_of_row(r, claim))
             .collect::<Result<Vec<_>, JobError>>()?;
         jobs.sort_by_key(|j| j.id);
         Ok(jobs)
@@ -391,22 +338,6 @@ impl RoofJobQueue for SqliteJobQueue {
         .await?;
         rows.iter().map(prediction_of_row).collect()
     }
-}
-
-fn prediction_of_row(r: &sqlx::sqlite::SqliteRow) -> Result<StoredPrediction, JobError> {
-    Ok(StoredPrediction {
-        osm_id: r.get(0),
-        footprint_hash: r.get(1),
-        imagery_id: r.get(2),
-        model_id: r.get(3),
-        prediction: Prediction::new([
-            r.get::<f64, _>(4) as f32,
-            r.get::<f64, _>(5) as f32,
-            r.get::<f64, _>(6) as f32,
-        ]),
-        footprint: parse_ring(&r.get::<String, _>(7))?,
-        work_ms: r.get(8),
-    })
 }
 
 #[cfg(test)]
