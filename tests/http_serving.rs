@@ -260,7 +260,7 @@ fn metric(text: &str, name: &str) -> f64 {
 
 async fn stored_data_tiles(db: &std::path::Path) -> i64 {
     let pool = citymesh::db::open(db.to_str().unwrap()).await.unwrap();
-    citymesh::source::data_tiles::OsmTileStore::new(pool)
+    citymesh::source::data_tiles::OsmTileStore::new(citymesh::db::Database::Sqlite(pool))
         .count()
         .await
         .unwrap()

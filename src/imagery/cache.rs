@@ -80,7 +80,8 @@ impl ImageryCache {
                     .bind(now)
                     .bind(now)
                     .execute($pool)
-                    .await?
+                    .await
+                    .map(drop)?
             };
         }
         match &self.db {
@@ -119,7 +120,8 @@ impl ImageryCache {
                 )
                 .bind(target)
                 .execute(p)
-                .await?
+                .await
+                .map(drop)?
             }
             Database::Postgres(p) => {
                 sqlx::query(
@@ -129,7 +131,8 @@ impl ImageryCache {
                 )
                 .bind(target)
                 .execute(p)
-                .await?
+                .await
+                .map(drop)?
             }
         };
         self.stored

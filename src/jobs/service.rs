@@ -200,6 +200,9 @@ impl RoofJobs {
                     jobs.metrics
                         .inference_seconds
                         .observe(report.inference.as_secs_f64());
+                    let replicas = &jobs.metrics.replicas;
+                    replicas.roof_jobs_claimed.inc_by(report.claimed as u64);
+                    replicas.roof_jobs_lease_lost.inc_by(report.lost as u64);
                     let jobs = jobs.clone();
                     tokio::spawn(async move { jobs.refresh_state_metrics().await });
                 });

@@ -35,6 +35,8 @@ impl Default for WorkerConfig {
 /// What one round did.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct RoundReport {
+    /// Jobs the round claimed.
+    pub claimed: usize,
     pub done: usize,
     pub failed: usize,
     /// Jobs whose lease ran out before they were stored (another worker has them now).
@@ -91,7 +93,10 @@ async fn work_round<Q: RoofJobQueue>(
     on_done: OnDone<'_>,
 ) -> Result<RoundReport, JobError> {
     let round_started = std::time::Instant::now();
-    let mut report = RoundReport::default();
+    let mut report = RoundReport {
+        claimed: jobs.len(),
+        ..RoundReport::default()
+    };
     let mut tiles = TileMemo::new();
     let footprints: Vec<&[[f64; 2]]> = jobs.iter().map(|j| j.footprint.as_slice()).collect();
     prefetch_tiles(&footprints, imagery, &mut tiles).await;
