@@ -1,9 +1,9 @@
 //! Adapting the roof classifier to the served imagery from OpenStreetMap's own tags
 //! (docs/method.md section 13): the buildings of a box that carry a `roof:shape` of the three
 //! classes are cropped from the imagery as any building is, the model embeds them, and a head is
-//! fitted, cross-validated and stored in the server's database (`roof_adaptations`); when fitted, it
-//! is put in use for this imagery. Progress is kept in the database as it goes, so a client can
-//! follow it and nothing reports "running" after a restart.
+//! fitted, cross-validated and stored in the server's database (`roof_adaptations`, SQLite or
+//! PostgreSQL); when fitted, it is put in use for this imagery. Progress is kept in the database
+//! as it goes, so a client can follow it and nothing reports "running" after a restart.
 
 use super::queue::{JobError, NewJob};
 use super::rows::now_ms;

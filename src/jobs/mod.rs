@@ -24,8 +24,8 @@ pub use backend::JobQueue;
 pub use index::{IndexedPrediction, PredictionIndex};
 pub use postgres::PgJobQueue;
 pub use queue::{
-    BatchCounts, BatchProgress, ClaimedJob, JobError, NewJob, RoofJobQueue, StoredPrediction,
-    footprint_hash, ring_bounds,
+    BatchCounts, BatchProgress, ClaimedJob, JobError, MAX_ATTEMPTS, NewJob, RoofJobQueue,
+    StoredPrediction, footprint_hash, ring_bounds,
 };
 pub use select::{Selection, select_buildings};
 pub use service::{ActiveModel, RoofJobs};
