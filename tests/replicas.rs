@@ -157,7 +157,9 @@ async fn two_replicas_generate_a_tile_once_and_see_each_others_data_changes() {
         assert!(
             imported.elapsed() < Duration::from_secs(2),
             "after 2 s: {:?}",
-            seen.iter().map(|s| s.as_ref().map(|s| s.0)).collect::<Vec<_>>()
+            seen.iter()
+                .map(|s| s.as_ref().map(|s| s.0))
+                .collect::<Vec<_>>()
         );
         tokio::time::sleep(Duration::from_millis(20)).await;
     }
@@ -190,15 +192,9 @@ fn rough_area_m2(ring: &[[f64; 2]]) -> f64 {
     twice.abs() / 2.0
 }
 
-/// The ids of `n` buildings of Kirchfeld the server queues for `CLASSIFIED` with
-/// `include_tagged`: whose outline's and footprint's centres lie in it, and well over the
+/// The ids of `n` of `records` the server queues for `CLASSIFIED`: whose outline's and footprint's centres lie in it, and well over the
 /// smallest footprint classified (12 m²).
-fn some_buildings(n: usize) -> Vec<String> {
-    let records = citymesh_core::osm::read_buildings(&common::osm_bytes(
-        "karlsruhe-kirchfeld.osm.pbf",
-    ))
-    .unwrap()
-    .buildings;
+fn some_buildings(records: &[citymesh_core::osm::BuildingRecord], n: usize) -> Vec<String> {
     let area: citymesh_core::geo::GeoBbox = CLASSIFIED.parse().unwrap();
     let centre_in = |[w, s, e, n]: [f64; 4]| area.contains((w + e) / 2.0, (s + n) / 2.0);
     let in_box: Vec<&citymesh_core::osm::BuildingRecord> = records
@@ -250,7 +246,17 @@ async fn two_hundred_roof_jobs_are_shared_by_both_replicas_and_survive_a_kill() 
     let dir = tempfile::tempdir().unwrap();
     let base = common::imagery::imagery_server().await;
     let grey = format!("{base}/grey/{{z}}/{{x}}/{{y}}.png");
-    let osm = common::data_dir().join("osm/karlsruhe-kirchfeld.osm.pbf");
+    // Kirchfeld without roof tags: every prediction shapes a roof of `roofs=classified`.
+    let mut records =
+        citymesh_core::osm::read_buildings(&common::osm_bytes("karlsruhe-kirchfeld.osm.pbf"))
+            .unwrap()
+            .buildings;
+    records.iter_mut().for_each(|r| {
+        r.tags.remove("roof:shape");
+    });
+    let osm = dir.path().join("kirchfeld-untagged.json");
+    let refs: Vec<&citymesh_core::osm::BuildingRecord> = records.iter().collect();
+    std::fs::write(&osm, citymesh_core::osm::write_overpass_json(&refs)).unwrap();
     let args = [
         "--osm",
         osm.to_str().unwrap(),
@@ -263,12 +269,11 @@ async fn two_hundred_roof_jobs_are_shared_by_both_replicas_and_survive_a_kill() 
     let mut a = replica(dir.path(), &pg.url, &args);
     let b = replica(dir.path(), &pg.url, &args);
     let http = reqwest::Client::new();
-    let ids = some_buildings(200);
+    let ids = some_buildings(&records, 200);
     assert_eq!(ids.len(), 200);
     let body = serde_json::json!({
         "bbox": CLASSIFIED,
-        "osm_ids": ids,
-        "include_tagged": true
+        "osm_ids": ids
     });
     let created = http
         .post(format!("{}/classify", a.url))
@@ -324,10 +329,32 @@ async fn two_hundred_roof_jobs_are_shared_by_both_replicas_and_survive_a_kill() 
         "claimed by A {claimed_by_a}, by B {claimed_by_b}; {states:?}, {predictions} \
          predictions, {attempts} attempts"
     );
-    assert!(claimed_by_a > 0.0 && claimed_by_b > 0.0, "both replicas worked");
+    assert!(
+        claimed_by_a > 0.0 && claimed_by_b > 0.0,
+        "both replicas worked"
+    );
     assert_eq!(states, [("done".to_owned(), 200)]);
     assert_eq!(predictions, 200, "each job done exactly once");
     // Only the jobs A held when killed ran twice (A's claim at that moment, at most 16).
     assert!((200..=216).contains(&attempts), "{attempts} attempts");
     assert!(claimed_by_a + claimed_by_b >= 200.0);
+    // B's classified roofs use every prediction, A's included (announced through PostgreSQL).
+    let stats = http
+        .get(format!(
+            "{}/scene/stats?bbox={CLASSIFIED}&roofs=classified",
+            b.url
+        ))
+        .send()
+        .await
+        .unwrap()
+        .bytes()
+        .await
+        .unwrap();
+    let stats: Value = serde_json::from_slice(&stats).unwrap();
+    let figures = &stats["classified_roofs"];
+    assert_eq!(
+        figures["classified"].as_u64().unwrap() + figures["uncertain"].as_u64().unwrap(),
+        200,
+        "{figures}"
+    );
 }

@@ -128,16 +128,25 @@ async fn data_tile_scenario(db: Database) -> Vec<String> {
     let mut seen = Vec::new();
     seen.push(format!(
         "{}",
-        store.put(&t(0), &[1; 1_000], DataOrigin::Overpass).await.unwrap()
+        store
+            .put(&t(0), &[1; 1_000], DataOrigin::Overpass)
+            .await
+            .unwrap()
     ));
     // The same body again changes nothing; another does.
     seen.push(format!(
         "{}",
-        store.put(&t(0), &[1; 1_000], DataOrigin::Overpass).await.unwrap()
+        store
+            .put(&t(0), &[1; 1_000], DataOrigin::Overpass)
+            .await
+            .unwrap()
     ));
     seen.push(format!(
         "{}",
-        store.put(&t(0), &[2; 1_000], DataOrigin::Overpass).await.unwrap()
+        store
+            .put(&t(0), &[2; 1_000], DataOrigin::Overpass)
+            .await
+            .unwrap()
     ));
     store
         .put(&t(9), &[9; 5_000], DataOrigin::Import)
@@ -271,7 +280,10 @@ async fn a_replica_missing_a_tile_another_generates_waits_for_its_row() {
     match waiting.await.unwrap() {
         GenerationTurn::Stored { tile, waited } => {
             assert!(waited);
-            assert_eq!((&tile.bytes[..], tile.etag.as_str()), (&b"the tile"[..], "\"e1\""));
+            assert_eq!(
+                (&tile.bytes[..], tile.etag.as_str()),
+                (&b"the tile"[..], "\"e1\"")
+            );
         }
         GenerationTurn::Generate { .. } => panic!("B generated a tile A had written"),
     }
@@ -327,7 +339,9 @@ async fn deleting_tiles_over_an_area_tells_every_listening_replica_in_the_same_t
         unreachable!()
     };
     let pool = citymesh::db::open_postgres(&pg.url, 2).await.unwrap();
-    let mut listener = sqlx::postgres::PgListener::connect_with(&pool).await.unwrap();
+    let mut listener = sqlx::postgres::PgListener::connect_with(&pool)
+        .await
+        .unwrap();
     listener
         .listen(citymesh::cache::DATA_CHANGED_CHANNEL)
         .await

@@ -49,7 +49,10 @@ impl ReplicaCaches {
                 self.forget(Some(&note.area));
             }
             None => {
-                tracing::warn!(payload, "unreadable data-change announcement; memory dropped");
+                tracing::warn!(
+                    payload,
+                    "unreadable data-change announcement; memory dropped"
+                );
                 self.forget(None);
             }
         }

@@ -82,9 +82,10 @@ impl SceneCache {
     /// Drops the scenes whose box overlaps `area`.
     pub fn invalidate_area(&self, area: &citymesh_core::geo::GeoBbox) {
         let area = *area;
-        if let Err(e) = self.memory.invalidate_entries_if(move |key, _| {
-            key.tile.bounds().intersects(&area)
-        }) {
+        if let Err(e) = self
+            .memory
+            .invalidate_entries_if(move |key, _| key.tile.bounds().intersects(&area))
+        {
             tracing::error!("cannot invalidate cached scenes: {e}");
         }
     }

@@ -230,7 +230,11 @@ impl TileCache {
                 }
                 self.metrics.cache(backend, false);
                 // Another replica may be generating it: wait for its row rather than repeat it.
-                let lock = match self.store.turn(&key, &self.data_version, self.lock_wait).await {
+                let lock = match self
+                    .store
+                    .turn(&key, &self.data_version, self.lock_wait)
+                    .await
+                {
                     Ok(GenerationTurn::Stored { tile, waited }) => {
                         self.metrics.generation_lock_waits(waited, false);
                         level.store(1, Ordering::Relaxed);

@@ -22,7 +22,11 @@ pub struct ServeArgs {
 
     /// How long a tile this replica misses waits for another replica generating the same tile
     /// (PostgreSQL only) before generating it too, milliseconds.
-    #[arg(long, env = "CITYMESH_GENERATION_LOCK_WAIT_MS", default_value_t = 10_000)]
+    #[arg(
+        long,
+        env = "CITYMESH_GENERATION_LOCK_WAIT_MS",
+        default_value_t = 10_000
+    )]
     pub generation_lock_wait_ms: u64,
 
     /// OSM data to serve buildings from: OSM PBF, OSM XML or Overpass JSON, optionally gzipped.

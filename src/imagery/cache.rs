@@ -112,28 +112,24 @@ impl ImageryCache {
     async fn evict(&self) -> sqlx::Result<()> {
         let target = i64::try_from(self.max_bytes / 10 * 9).unwrap_or(i64::MAX);
         match &self.db {
-            Database::Sqlite(p) => {
-                sqlx::query(
-                    "DELETE FROM imagery_tiles WHERE rowid IN (SELECT rowid FROM (SELECT rowid, \
+            Database::Sqlite(p) => sqlx::query(
+                "DELETE FROM imagery_tiles WHERE rowid IN (SELECT rowid FROM (SELECT rowid, \
                      SUM(length(bytes)) OVER (ORDER BY last_used DESC, rowid DESC) AS kept \
                      FROM imagery_tiles) WHERE kept > ?)",
-                )
-                .bind(target)
-                .execute(p)
-                .await
-                .map(drop)?
-            }
-            Database::Postgres(p) => {
-                sqlx::query(
-                    "DELETE FROM imagery_tiles WHERE ctid IN (SELECT ctid FROM (SELECT ctid, \
+            )
+            .bind(target)
+            .execute(p)
+            .await
+            .map(drop)?,
+            Database::Postgres(p) => sqlx::query(
+                "DELETE FROM imagery_tiles WHERE ctid IN (SELECT ctid FROM (SELECT ctid, \
                      SUM(length(bytes)) OVER (ORDER BY last_used DESC, imagery_id DESC, z DESC, \
                      x DESC, y DESC) AS kept FROM imagery_tiles) t WHERE kept > $1)",
-                )
-                .bind(target)
-                .execute(p)
-                .await
-                .map(drop)?
-            }
+            )
+            .bind(target)
+            .execute(p)
+            .await
+            .map(drop)?,
         };
         self.stored
             .store(stored_bytes(&self.db).await?, Ordering::Relaxed);
@@ -150,11 +146,9 @@ async fn stored_bytes(db: &Database) -> sqlx::Result<i64> {
                 .await
         }
         Database::Postgres(p) => {
-            sqlx::query_scalar(
-                "SELECT COALESCE(SUM(length(bytes)), 0)::BIGINT FROM imagery_tiles",
-            )
-            .fetch_one(p)
-            .await
+            sqlx::query_scalar("SELECT COALESCE(SUM(length(bytes)), 0)::BIGINT FROM imagery_tiles")
+                .fetch_one(p)
+                .await
         }
     }
 }

@@ -13,6 +13,7 @@ mod backend;
 mod index;
 mod postgres;
 mod queue;
+pub mod replica_predictions;
 mod rows;
 mod select;
 mod service;

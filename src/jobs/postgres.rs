@@ -8,6 +8,7 @@ use super::queue::{
     BatchCounts, BatchProgress, ClaimedJob, JobError, MAX_ATTEMPTS, NewJob, RoofJobQueue,
     StoredPrediction, footprint_hash, ring_bounds,
 };
+use super::replica_predictions::{PREDICTION_CHANNEL, PredictionNote};
 use super::rows::{
     ENQUEUE_CHUNK, claimed_of_row, empty_states, lease_end, now_ms, prediction_columns,
     prediction_of_row, random_claim, ring_json,
@@ -229,6 +230,20 @@ impl RoofJobQueue for PgJobQueue {
         .bind(work_ms)
         .execute(&mut *tx)
         .await?;
+        // Every replica hears of it once it is stored (notifications go out at commit).
+        let note = PredictionNote {
+            osm_id: job.osm_id.clone(),
+            footprint_hash: job.footprint_hash.clone(),
+            imagery_id: job.imagery_id.clone(),
+            model_id: job.model_id.clone(),
+            probabilities: p,
+            work_ms,
+        };
+        sqlx::query("SELECT pg_notify($1, $2)")
+            .bind(PREDICTION_CHANNEL)
+            .bind(serde_json::to_string(&note).unwrap_or_default())
+            .execute(&mut *tx)
+            .await?;
         tx.commit().await?;
         Ok(true)
     }

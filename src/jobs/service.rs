@@ -136,6 +136,27 @@ impl RoofJobs {
         Ok(())
     }
 
+    /// Loads the active model's predictions again (another replica may have stored some this
+    /// one did not hear of).
+    pub async fn reload_predictions(&self) -> Result<(), JobError> {
+        let active = self.active();
+        let index =
+            Arc::new(PredictionIndex::load(&self.queue, &self.imagery_id, &active.model_id).await?);
+        let next = Arc::new(ActiveModel {
+            model_id: active.model_id.clone(),
+            classifier: active.classifier.clone(),
+            index,
+            threshold: active.threshold,
+        });
+        match self.active.write() {
+            // Unless a head was put in use meanwhile (it loaded its own predictions).
+            Ok(mut a) if a.model_id == next.model_id => *a = next,
+            Ok(_) => {}
+            Err(poisoned) => *poisoned.into_inner() = next,
+        }
+        Ok(())
+    }
+
     /// Why jobs cannot run here, if they cannot.
     pub fn why_not_running(&self) -> Option<&'static str> {
         if self.active().classifier.is_none() {

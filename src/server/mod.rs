@@ -81,10 +81,7 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
     let memory = MemoryBudget::of_megabytes(args.memory_mb);
     let dem = tokio::task::spawn_blocking(move || DemStore::open(&dem_dir, memory.dem)).await?;
     let metrics = Arc::new(Metrics::default());
-    let store = OsmTileStore::bounded(
-        database.clone(),
-        args.osm_store_mb.saturating_mul(1 << 20),
-    );
+    let store = OsmTileStore::bounded(database.clone(), args.osm_store_mb.saturating_mul(1 << 20));
     // Nothing configured at all: a procedural city, so a fresh `cargo run` shows something.
     let demo = args.osm.is_empty()
         && args.overpass_url.is_none()
@@ -220,6 +217,9 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         )
         .await?,
     );
+    if let db::Database::Postgres(pool) = &database {
+        crate::jobs::replica_predictions::listen(pool.clone(), roofs.clone()).await?;
+    }
     tracing::info!(
         predictions = roofs.active().index.len(),
         imagery = %roofs.imagery_id,

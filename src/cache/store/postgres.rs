@@ -106,11 +106,7 @@ fn is_lock_timeout(e: &sqlx::Error) -> bool {
 
 impl PgTileStore {
     /// A store bounded to `max_bytes` (`u64::MAX`: unbounded), announcing changes as `replica`.
-    pub async fn bounded(
-        pool: PgPool,
-        max_bytes: u64,
-        replica: &str,
-    ) -> Result<Self, sqlx::Error> {
+    pub async fn bounded(pool: PgPool, max_bytes: u64, replica: &str) -> Result<Self, sqlx::Error> {
         let store = Self {
             pool,
             max_bytes,
@@ -147,7 +143,10 @@ impl PgTileStore {
         key: &TileKey,
         data_version: &str,
     ) -> Result<Option<StoredTile>, sqlx::Error> {
-        let sql = concat!("SELECT bytes, etag FROM generated_tiles WHERE ", key_where!());
+        let sql = concat!(
+            "SELECT bytes, etag FROM generated_tiles WHERE ",
+            key_where!()
+        );
         let row = bind_key(sqlx::query(sql), key, data_version)
             .fetch_optional(&self.pool)
             .await?;
@@ -228,7 +227,10 @@ impl PgTileStore {
         }
         // Holding the lock: the row may have been written meanwhile (by the one who held it, or
         // just before this call took it).
-        let sql = concat!("SELECT bytes, etag FROM generated_tiles WHERE ", key_where!());
+        let sql = concat!(
+            "SELECT bytes, etag FROM generated_tiles WHERE ",
+            key_where!()
+        );
         if let Some(row) = bind_key(sqlx::query(sql), key, data_version)
             .fetch_optional(&mut *tx)
             .await?

@@ -3,7 +3,7 @@
 use super::{DataOrigin, StoredDataTile, stored_of};
 use bytes::Bytes;
 use citymesh_core::geo::TileCoord;
-use sqlx::{Row, PgPool};
+use sqlx::{PgPool, Row};
 use std::collections::HashMap;
 
 pub(super) async fn write_uses(
@@ -27,10 +27,12 @@ pub(super) async fn write_uses(
 }
 
 pub(super) async fn overpass_bytes(pool: &PgPool) -> Result<i64, sqlx::Error> {
-    sqlx::query("SELECT COALESCE(SUM(size), 0)::BIGINT FROM osm_data_tiles WHERE source = 'overpass'")
-        .fetch_one(pool)
-        .await
-        .map(|r| r.get(0))
+    sqlx::query(
+        "SELECT COALESCE(SUM(size), 0)::BIGINT FROM osm_data_tiles WHERE source = 'overpass'",
+    )
+    .fetch_one(pool)
+    .await
+    .map(|r| r.get(0))
 }
 
 pub(super) async fn evict_least_used(pool: &PgPool) -> Result<Vec<i64>, sqlx::Error> {
@@ -78,14 +80,15 @@ pub(super) async fn put(
     now_secs: i64,
 ) -> Result<Option<String>, sqlx::Error> {
     let mut tx = pool.begin().await?;
-    let previous: Option<String> =
-        sqlx::query("SELECT hash FROM osm_data_tiles WHERE z = $1 AND x = $2 AND y = $3 FOR UPDATE")
-            .bind(i64::from(t.z))
-            .bind(i64::from(t.x))
-            .bind(i64::from(t.y))
-            .fetch_optional(&mut *tx)
-            .await?
-            .map(|r| r.get(0));
+    let previous: Option<String> = sqlx::query(
+        "SELECT hash FROM osm_data_tiles WHERE z = $1 AND x = $2 AND y = $3 FOR UPDATE",
+    )
+    .bind(i64::from(t.z))
+    .bind(i64::from(t.x))
+    .bind(i64::from(t.y))
+    .fetch_optional(&mut *tx)
+    .await?
+    .map(|r| r.get(0));
     sqlx::query(
         "INSERT INTO osm_data_tiles (z, x, y, body, hash, source, fetched_at, size, last_used) \
          VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9) ON CONFLICT (z, x, y) DO UPDATE SET \
