@@ -31,6 +31,8 @@ fn serve_answers_and_shuts_down_gracefully_on_sigterm() {
     assert!(head.starts_with("HTTP/1.1 200"), "{head}");
     let health: serde_json::Value = serde_json::from_slice(&body).unwrap();
     assert_eq!(health["dem_files"], 5);
+    // One machine: the SQLite file, no database server.
+    assert_eq!(health["database"]["backend"], "sqlite");
 
     let (head, body) = http_get(&addr, "/tiles/16/34297/22492.glb");
     assert!(head.starts_with("HTTP/1.1 200"), "{head}");

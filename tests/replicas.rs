@@ -168,6 +168,11 @@ async fn two_replicas_generate_a_tile_once_and_see_each_others_data_changes() {
     };
     assert!(ta.3 < before, "{} buildings after, {before} before", ta.3);
     assert_eq!((&ta.1, &ta.2), (&tb.1, &tb.2), "the same new tile on both");
+    // Health names the shared database; once it is gone, a 503 that says so.
+    let health = http.get(format!("{}/health", a.url)).send().await.unwrap();
+    assert_eq!(health.status(), 200);
+    let health: Value = serde_json::from_slice(&health.bytes().await.unwrap()).unwrap();
+    assert_eq!(health["database"]["backend"], "postgres");
     for r in [&a, &b] {
         // One announcement per changed data tile, heard by each replica.
         assert_eq!(
@@ -175,6 +180,13 @@ async fn two_replicas_generate_a_tile_once_and_see_each_others_data_changes() {
             changed_data_tiles as f64
         );
     }
+    drop(pg);
+    let health = http.get(format!("{}/health", b.url)).send().await.unwrap();
+    assert_eq!(health.status(), 503);
+    let health: Value = serde_json::from_slice(&health.bytes().await.unwrap()).unwrap();
+    assert_eq!(health["error"], "database_unreachable", "{health}");
+    // Tiles held in memory are still served.
+    assert_eq!(tile(&http, &b).await.0, 200);
 }
 
 /// The area whose buildings are classified.
