@@ -317,6 +317,7 @@ async fn two_hundred_roof_jobs_are_shared_by_both_replicas_and_survive_a_kill() 
         assert!(Instant::now() < deadline, "{p}");
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
+    // Counted as each worker round ends: A's last round, cut short by the kill, is not in it.
     let claimed_by_a = metric(&http, &a, "citymesh_roof_jobs_claimed_total").await;
     a.child.kill().unwrap();
     a.child.wait().unwrap();
@@ -349,7 +350,6 @@ async fn two_hundred_roof_jobs_are_shared_by_both_replicas_and_survive_a_kill() 
     assert_eq!(predictions, 200, "each job done exactly once");
     // Only the jobs A held when killed ran twice (A's claim at that moment, at most 16).
     assert!((200..=216).contains(&attempts), "{attempts} attempts");
-    assert!(claimed_by_a + claimed_by_b >= 200.0);
     // B's classified roofs use every prediction, A's included (announced through PostgreSQL).
     let stats = http
         .get(format!(
