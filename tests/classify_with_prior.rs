@@ -23,7 +23,7 @@ use std::time::Duration;
 const PART: &str = "8.3960,49.0520,8.4030,49.0580";
 /// Hidden buildings of the part with a prediction, and those the classifier alone, the prior
 /// alone and the combination get right.
-const COUNTS: (usize, usize, usize, usize) = (160, 156, 156, 159);
+const COUNTS: (usize, usize, usize, usize) = (160, 157, 156, 159);
 
 fn numeric(id: OsmId) -> i64 {
     match id {
