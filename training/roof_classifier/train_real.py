@@ -35,6 +35,16 @@ from train import CLASSES, UNKNOWN, augment, load
 EMBEDDING = 1280
 
 
+def grey_outside(x):
+    """The colours with every pixel more than 2 px outside a known footprint set to grey, the
+    mask, and whether each crop's footprint is known (N x 1 x 1 x 1)."""
+    rgb, mask = x[:, :3], x[:, 3:]
+    known = ((mask - UNKNOWN).abs() > 0.01).flatten(1).any(dim=1).view(-1, 1, 1, 1)
+    grown = F.max_pool2d(mask, 5, stride=1, padding=2)
+    keep = torch.where(known, grown, torch.ones_like(grown))
+    return rgb * keep + 0.5 * (1 - keep), mask, known
+
+
 class RealRoofNet(nn.Module):
     def __init__(self, pretrained=True):
         super().__init__()
@@ -56,11 +66,7 @@ class RealRoofNet(nn.Module):
         self.head = nn.Linear(EMBEDDING, 3)
 
     def embed(self, x):
-        rgb, mask = x[:, :3], x[:, 3:]
-        known = ((mask - UNKNOWN).abs() > 0.01).flatten(1).any(dim=1).view(-1, 1, 1, 1)
-        grown = F.max_pool2d(mask, 5, stride=1, padding=2)
-        keep = torch.where(known, grown, torch.ones_like(grown))
-        rgb = rgb * keep + 0.5 * (1 - keep)
+        rgb, mask, known = grey_outside(x)
         m = torch.where(known, mask - 0.5, torch.zeros_like(mask))
         z = torch.cat([(rgb - 0.5) / 0.5, m * 2], dim=1)
         b = self.backbone
