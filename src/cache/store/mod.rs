@@ -133,14 +133,6 @@ impl TileStore {
             Self::Postgres(s) => s.delete_overlapping(area).await,
         }
     }
-
-    /// Writes the uses noted since the last write.
-    pub async fn write_uses(&self) {
-        match self {
-            Self::Sqlite(s) => s.write_uses().await,
-            Self::Postgres(s) => s.write_uses().await,
-        }
-    }
 }
 
 pub(crate) fn now_ms() -> i64 {
