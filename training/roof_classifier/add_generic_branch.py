@@ -44,8 +44,8 @@ from onnx import TensorProto, helper, numpy_helper
 from sklearn.linear_model import LogisticRegression
 from sklearn.model_selection import StratifiedKFold
 
-from train import UNKNOWN, load
-from train_real import grey_outside, store_fp16
+from train import load
+from train_real import grey_outside, passes, predict, report, store_fp16
 
 REGIONS = 5
 FEATURES = 1280
@@ -94,39 +94,15 @@ class GenericBranch(nn.Module):
         return torch.softmax(self.head((e - self.mean) / self.scale), dim=1), e
 
 
-def passes(xb):
-    """The passes citymesh runs for a batch: the rectangle's 4 turns and flips for crops with a
-    footprint, all 8 for crops without; (pass tensor, which rows it counts for)."""
-    known = ((xb[:, 3:] - UNKNOWN).abs() > 0.01).flatten(1).any(dim=1)
-    for flip in (False, True):
-        y = torch.flip(xb, dims=(3,)) if flip else xb
-        for k in range(4):
-            yield torch.rot90(y, k, dims=(2, 3)), (torch.ones_like(known) if k % 2 == 0 else ~known)
-
-
 def embed_all(branch, x, batch=64):
     """Generic features of every crop at the rectangle's 4 passes: N x 4 x D."""
     out = []
     with torch.no_grad():
         for i in range(0, len(x), batch):
             xb = torch.from_numpy(x[i:i + batch]).float() / 255.0
-            runs = [branch.embed(y) for y, _ in list(passes(xb))[0::2]]
+            # The rectangle's 4 passes (turns by 0 and 180 degrees, flipped or not).
+            runs = [branch.embed(y) for k, (y, _) in enumerate(passes(xb)) if k % 2 == 0]
             out.append(torch.stack(runs, 1).numpy())
-    return np.concatenate(out)
-
-
-def predict(run, x, batch=64):
-    """Probabilities averaged over the passes citymesh runs; `run` maps a batch to N x 3."""
-    out = []
-    with torch.no_grad():
-        for i in range(0, len(x), batch):
-            xb = torch.from_numpy(x[i:i + batch]).float() / 255.0
-            total = torch.zeros(len(xb), 3)
-            count = torch.zeros(len(xb), 1)
-            for y, use in passes(xb):
-                total += run(y) * use[:, None]
-                count += use[:, None].float()
-            out.append((total / count).numpy())
     return np.concatenate(out)
 
 
@@ -203,13 +179,6 @@ def merge(base_path, generic_path, weight, out):
 
 def accuracy(p, y):
     return float((p.argmax(1) == y).mean())
-
-
-def confusion(p, y):
-    m = np.zeros((3, 3), dtype=np.int64)
-    for t, q in zip(y, p.argmax(1)):
-        m[t, q] += 1
-    return m.tolist()
 
 
 def main():
@@ -295,7 +264,7 @@ def main():
           f"relative embedding difference {egap:.2e}; {time.time() - t0:.0f} s", flush=True)
     json.dump({"C": c, "cross-validated real": cv, "blend weight": weight,
                "validation renders by weight": scores, "onnx_vs_float": gap, "embedding_gap": egap,
-               "real training crops (generic head, seen)": confusion(predict(lambda y: branch(y)[0], xq), yq),
+               "real training crops (generic head, seen)": report(yq, predict(lambda y: branch(y)[0], xq)),
                "args": vars(args)}, open(args.metrics, "w"), indent=2)
 
 

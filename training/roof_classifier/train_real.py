@@ -92,24 +92,36 @@ class Exported(nn.Module):
         return torch.softmax(self.net.head(e), dim=1), e
 
 
-def predict_rect(net, x, batch=128):
-    """Probabilities averaged over the rectangle's 4 turns and flips (crops with a footprint) or
-    all 8 (crops without), as citymesh runs the model."""
-    net.eval()
+def passes(xb):
+    """The passes citymesh runs for a batch: (turned crops, which rows the pass counts for). The
+    rectangle's 4 turns and flips (turns by 0 and 180 degrees) count for every crop; the other 4
+    only for crops without a footprint, which citymesh runs in all 8."""
+    known = ((xb[:, 3:] - UNKNOWN).abs() > 0.01).flatten(1).any(dim=1)
+    for flip in (False, True):
+        y = torch.flip(xb, dims=(3,)) if flip else xb
+        for k in range(4):
+            yield torch.rot90(y, k, dims=(2, 3)), (torch.ones_like(known) if k % 2 == 0 else ~known)
+
+
+def predict(run, x, batch=128):
+    """Probabilities averaged over the passes citymesh runs; `run` maps a batch to N x 3."""
     out = []
     with torch.no_grad():
         for i in range(0, len(x), batch):
             xb = torch.from_numpy(x[i:i + batch]).float() / 255.0
-            known = ((xb[:, 3:] - UNKNOWN).abs() > 0.01).flatten(1).any(dim=1)
-            runs = []
-            for flip in (False, True):
-                y = torch.flip(xb, dims=(3,)) if flip else xb
-                for k in range(4):
-                    runs.append(torch.softmax(net(torch.rot90(y, k, dims=(2, 3))), dim=1))
-            all8 = torch.stack(runs).mean(0)
-            rect = torch.stack([runs[j] for j in (0, 2, 4, 6)]).mean(0)
-            out.append(torch.where(known[:, None], rect, all8).numpy())
+            total = torch.zeros(len(xb), 3)
+            count = torch.zeros(len(xb), 1)
+            for y, use in passes(xb):
+                total += run(y) * use[:, None]
+                count += use[:, None].float()
+            out.append((total / count).numpy())
     return np.concatenate(out)
+
+
+def predict_rect(net, x, batch=128):
+    """The net's probabilities as citymesh runs it (`predict`)."""
+    net.eval()
+    return predict(lambda y: torch.softmax(net(y), dim=1), x, batch)
 
 
 def report(y, p):
