@@ -56,6 +56,13 @@ pub enum AppError {
         detail: String,
         retry_after_secs: u64,
     },
+    /// The client is over its share of a resource the server bounds: 429 with `Retry-After`.
+    #[error("{code}: {detail}")]
+    TooMany {
+        code: &'static str,
+        detail: String,
+        retry_after_secs: u64,
+    },
     /// The upstream OSM source did not answer in time: 504.
     #[error("upstream timed out: {0}")]
     UpstreamTimeout(String),
@@ -120,6 +127,14 @@ impl IntoResponse for AppError {
             } => {
                 retry_after = Some(retry_after_secs);
                 (StatusCode::SERVICE_UNAVAILABLE, code, detail)
+            }
+            AppError::TooMany {
+                code,
+                detail,
+                retry_after_secs,
+            } => {
+                retry_after = Some(retry_after_secs);
+                (StatusCode::TOO_MANY_REQUESTS, code, detail)
             }
             AppError::UpstreamTimeout(cause) => {
                 tracing::warn!(%cause, "upstream timed out");

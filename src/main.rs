@@ -8,8 +8,20 @@ use clap::Parser;
 #[global_allocator]
 static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
-fn main() -> anyhow::Result<()> {
-    match Cli::parse().command.unwrap_or_default() {
+/// Runs the command; an error is printed as one message with its causes (`error: ...: ...`),
+/// never a backtrace, and the exit status is 1.
+fn main() -> std::process::ExitCode {
+    match command(Cli::parse().command.unwrap_or_default()) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn command(command: Command) -> anyhow::Result<()> {
+    match command {
         // Serving and the commands that talk to the database or the network need the runtime;
         // batch commands run on this thread and start none (it shows in whole-process timings).
         command @ (Command::Serve(_)
@@ -23,14 +35,10 @@ fn main() -> anyhow::Result<()> {
 
 /// Runs `command` on a multi-threaded runtime.
 fn runtime(command: Command) -> anyhow::Result<()> {
-    {
-        {
-            tokio::runtime::Builder::new_multi_thread()
-                .enable_all()
-                .build()?
-                .block_on(run(command))
-        }
-    }
+    tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()?
+        .block_on(run(command))
 }
 
 /// The commands that serve or wait on the network and the database (on the runtime `main`
@@ -50,6 +58,15 @@ async fn run(command: Command) -> anyhow::Result<()> {
                 report.tiles_invalidated,
                 args.database.describe()
             );
+            // Which buildings were left out, and why (a building over 2 km, a node out of
+            // range, missing nodes, ...), the first hundred by id.
+            const SHOWN: usize = 100;
+            for (id, why) in report.skips.iter().take(SHOWN) {
+                eprintln!("skipped {id}: {why}");
+            }
+            if report.skips.len() > SHOWN {
+                eprintln!("... and {} more skipped", report.skips.len() - SHOWN);
+            }
             Ok(())
         }
         Command::Export(args) => {

@@ -70,6 +70,8 @@ pub struct ServerState {
     pub roofs: Arc<crate::jobs::RoofJobs>,
     /// The roof priors learned from each area's tags (`roofs=inferred`).
     pub priors: Arc<crate::cache::RoofPriors>,
+    /// Cancelled when the server shuts down: long work (adaptations, tree measurements) stops.
+    pub stopping: tokio_util::sync::CancellationToken,
     /// Origins whose pages may change state (`--cors-origin`), besides the server's own.
     pub cors_origins: Arc<Vec<String>>,
     /// What the memory caches may hold (`--memory-mb`).

@@ -358,3 +358,67 @@ async fn adapt_roofs_from_osm_files_stores_a_head_the_server_then_uses() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("at least 20"));
     assert!(!none.exists());
 }
+
+/// Round 3, item 3: of 16 concurrent `POST /classify/adapt` for one imagery, one starts and 15
+/// get 409 before gathering anything; `DELETE` cancels the running one, and a new one may start;
+/// the server's shutdown stops it and records why.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn one_adaptation_runs_at_a_time_and_cancel_and_shutdown_stop_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let (truth, osm, _) = kirchfeld(dir.path());
+    let imagery = common::imagery::styled_imagery_server(truth).await;
+    let args = common::imagery::classifying_args(
+        &dir.path().join("c.sqlite"),
+        &osm,
+        &format!("{imagery}/styled/{{z}}/{{x}}/{{y}}"),
+        "styled",
+    );
+    let state = citymesh::server::build_state(&args).await.unwrap();
+    let app = citymesh::app(state.clone());
+    let posts = (0..16).map(|_| {
+        let app = app.clone();
+        tokio::spawn(async move {
+            common::post_json(&app, "/classify/adapt", serde_json::json!({"bbox": WEST})).await
+        })
+    });
+    let mut started = Vec::new();
+    let mut conflicts = 0;
+    for post in posts.collect::<Vec<_>>() {
+        let answer = post.await.unwrap();
+        match answer.status {
+            StatusCode::ACCEPTED => started.push(answer.json()["id"].as_str().unwrap().to_owned()),
+            StatusCode::CONFLICT => {
+                assert_eq!(answer.json()["error"], "adaptation_running");
+                conflicts += 1;
+            }
+            other => panic!("{other}: {}", answer.text()),
+        }
+    }
+    assert_eq!((started.len(), conflicts), (1, 15));
+    let id = started.pop().unwrap();
+    let delete = |id: String| {
+        let app = app.clone();
+        async move {
+            let request = axum::http::Request::delete(format!("/classify/adapt/{id}"))
+                .body(axum::body::Body::empty())
+                .unwrap();
+            common::send(&app, request).await
+        }
+    };
+    let cancelled = delete(id.clone()).await;
+    assert_eq!(cancelled.status, StatusCode::OK, "{}", cancelled.text());
+    assert_eq!(cancelled.json()["state"], "cancelled");
+    let status = common::get(&app, &format!("/classify/adapt/{id}")).await.json();
+    assert_eq!(status["state"], "cancelled", "{status}");
+    // Cancelling it again: it has ended without a head.
+    assert_eq!(delete(id).await.status, StatusCode::CONFLICT);
+    // Another may start now; the shutdown stops it and says so.
+    let next = common::post_json(&app, "/classify/adapt", serde_json::json!({"bbox": WEST})).await;
+    assert_eq!(next.status, StatusCode::ACCEPTED, "{}", next.text());
+    let next = next.json()["id"].as_str().unwrap().to_owned();
+    state.roofs.shut_down(Duration::from_secs(120)).await;
+    let status = common::get(&app, &format!("/classify/adapt/{next}")).await.json();
+    assert_eq!(status["state"], "failed", "{status}");
+    assert!(status["error"].as_str().unwrap().contains("shutdown"), "{status}");
+    assert_eq!(state.roofs.adaptations.running("styled").await.unwrap(), None);
+}

@@ -807,16 +807,98 @@ async fn post_classify_gathers_its_buildings_within_the_request_timeout() {
         &["--overpass-url", &overpass, "--request-timeout-s", "1"],
     )
     .await;
-    let app = citymesh::app(state);
-    let answer = common::post_json(&app, "/classify", serde_json::json!({ "bbox": AREA })).await;
-    assert_eq!(
-        answer.status,
-        StatusCode::SERVICE_UNAVAILABLE,
-        "{}",
-        answer.text()
-    );
-    assert_eq!(answer.json()["error"], "timeout");
-    assert!(!answer.header("retry-after").is_empty());
+    let app = citymesh::app(state.clone());
+    // POST /classify and POST /classify/adapt alike (round 3: the adaptation waited 60 s).
+    for route in ["/classify", "/classify/adapt"] {
+        let answer = common::post_json(&app, route, serde_json::json!({ "bbox": AREA })).await;
+        assert_eq!(
+            answer.status,
+            StatusCode::SERVICE_UNAVAILABLE,
+            "{route}: {}",
+            answer.text()
+        );
+        assert_eq!(answer.json()["error"], "timeout");
+        assert!(!answer.header("retry-after").is_empty());
+    }
+    // The adaptation that timed out is recorded as failed, so the next one may start.
+    let imagery_id = state.roofs.imagery_id.clone();
+    assert_eq!(state.roofs.adaptations.running(&imagery_id).await.unwrap(), None);
+}
+
+/// Round 3, item 2: what classification batches keep in the store is bounded. One client past
+/// its share gets 429, everyone past the whole budget 503, both with Retry-After; deleting a
+/// batch gives its bytes back; finished batches expire.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn classification_batches_stay_within_their_budget_and_expire() {
+    use citymesh::jobs::batch_budget::batch_bytes;
+    let dir = tempfile::tempdir().unwrap();
+    let (osm, _) = stripped_kirchfeld(dir.path());
+    let imagery = common::imagery::imagery_server().await;
+    let imagery_url = format!("{imagery}/grey/{{z}}/{{x}}/{{y}}");
+    // A budget of 1 MiB, a client's share of half of it; finished batches expire at once.
+    let extra = [
+        "--osm",
+        osm.to_str().unwrap(),
+        "--classify-store-mb",
+        "1",
+        "--classify-client-share-percent",
+        "50",
+        "--classify-batch-ttl-s",
+        "0",
+    ];
+    let state = classifier_state(dir.path(), &imagery_url, &extra).await;
+    let app = citymesh::app(state.clone());
+    let first = common::post_json(&app, "/classify", serde_json::json!({ "bbox": AREA })).await;
+    assert_eq!(first.status, StatusCode::ACCEPTED, "{}", first.text());
+    let first = first.json();
+    let links = first["counts"]["queued"].as_u64().unwrap() + first["counts"]["already"].as_u64().unwrap();
+    let bytes = batch_bytes(links as usize);
+    assert!(bytes > 4096, "{bytes} bytes: too small an area to tell");
+    // The same box again and again: as many as fit in half a MiB, then 429.
+    let share = (1u64 << 20) / 2;
+    let fit = share / bytes;
+    let mut ids = vec![first["id"].as_str().unwrap().to_owned()];
+    for i in 1..fit {
+        let again = common::post_json(&app, "/classify", serde_json::json!({ "bbox": AREA })).await;
+        assert_eq!(again.status, StatusCode::ACCEPTED, "batch {i}: {}", again.text());
+        ids.push(again.json()["id"].as_str().unwrap().to_owned());
+    }
+    let over = common::post_json(&app, "/classify", serde_json::json!({ "bbox": AREA })).await;
+    assert_eq!(over.status, StatusCode::TOO_MANY_REQUESTS, "{}", over.text());
+    assert_eq!(over.json()["error"], "too_many_batches");
+    assert!(!over.header("retry-after").is_empty());
+    let (all, mine) = state.roofs.batches.usage("local").await.unwrap();
+    assert_eq!((all, mine), (fit * bytes, fit * bytes));
+    let delete = |id: String| {
+        let app = app.clone();
+        async move {
+            let request = axum::http::Request::delete(format!("/classify/{id}"))
+                .body(axum::body::Body::empty())
+                .unwrap();
+            let answer = common::send(&app, request).await;
+            assert_eq!(answer.status, StatusCode::OK, "{}", answer.text());
+        }
+    };
+    // Deleting a batch gives its links back at once.
+    delete(ids.remove(0)).await;
+    let (all, _) = state.roofs.batches.usage("local").await.unwrap();
+    assert_eq!(all, (fit - 1) * bytes + batch_bytes(0));
+    let again = common::post_json(&app, "/classify", serde_json::json!({ "bbox": AREA })).await;
+    assert_eq!(again.status, StatusCode::ACCEPTED, "{}", again.text());
+    ids.push(again.json()["id"].as_str().unwrap().to_owned());
+    // Once their jobs have ended (no worker runs here: deleting cancels them), batches expire at
+    // the next sweep, and the store keeps nothing of them.
+    let last = ids.last().unwrap().clone();
+    for id in ids {
+        delete(id).await;
+    }
+    let expired = state.roofs.batches.expire(i64::MAX).await.unwrap();
+    assert_eq!(expired, fit);
+    assert_eq!(state.roofs.batches.usage("local").await.unwrap(), (0, 0));
+    let gone = common::get(&app, &format!("/classify/{last}")).await;
+    assert_eq!(gone.status, StatusCode::NOT_FOUND, "{}", gone.text());
+    let text = gone.text();
+    assert!(text.contains("expired") || text.contains("finished batches are kept"), "{text}");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

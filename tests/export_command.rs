@@ -210,6 +210,19 @@ fn a_wrong_export_says_what_to_fix() {
         .unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--bbox"));
+    // An output that cannot be written (here `content` is a file, as a full disk or a read-only
+    // mount would refuse): one line naming the file, never a backtrace, even when asked for.
+    let blocked = tempfile::tempdir().unwrap();
+    std::fs::write(blocked.path().join("content"), "in the way").unwrap();
+    let out = export(blocked.path(), KIT_NORD, "karlsruhe-kit-nord.osm.pbf", &[])
+        .env("RUST_BACKTRACE", "1")
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    let named = format!("writing {}", blocked.path().join("content").display());
+    assert!(err.contains(&named), "{err}");
+    assert!(!err.contains("backtrace") && !err.contains("Caused by"), "{err}");
 }
 
 /// An S3 API (moto's server, from the test venv) on a free port of 127.0.0.1, killed on drop.

@@ -446,3 +446,61 @@ fn common_dem_model() -> citymesh_core::terrain::ElevationModel {
         citymesh_core::terrain::HgtTile::from_bytes(49, 8, &bytes).unwrap(),
     )])
 }
+
+/// Round 3, item 5: a tree's measurement is one however many ask, and outlives a request that
+/// gives up (its result is kept for the next); a tileset over more than one box may cover is
+/// refused rather than listing content URIs the server refuses.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn tree_measurements_are_shared_kept_and_never_list_refused_uris() {
+    use clap::Parser;
+    let file = common::data_dir().join("osm/karlsruhe-kirchfeld.osm.pbf");
+    let dem = dem_dir();
+    let state_with = |db: &tempfile::TempDir, extra: &[&str]| {
+        let mut argv = vec![
+            "serve".to_owned(),
+            "--dem-dir".to_owned(),
+            dem.to_str().unwrap().to_owned(),
+            "--cache-db".to_owned(),
+            db.path().join("c.sqlite").to_str().unwrap().to_owned(),
+            "--osm".to_owned(),
+            file.to_str().unwrap().to_owned(),
+        ];
+        argv.extend(extra.iter().map(|a| (*a).to_owned()));
+        let args = citymesh::cli::ServeArgs::parse_from(argv);
+        async move { citymesh::server::build_state(&args).await }
+    };
+    // Kirchfeld spans about 3.3 km²: with a limit of 1 km² its tileset would list content the
+    // server refuses.
+    let db = tempfile::tempdir().unwrap();
+    let small = citymesh::app(state_with(&db, &["--max-bbox-km2", "1"]).await.unwrap());
+    let refused = get(&small, "/3dtiles/tileset.json").await;
+    assert_eq!(refused.status, StatusCode::BAD_REQUEST, "{}", refused.text());
+    assert_eq!(refused.json()["error"], "bbox_too_large");
+    assert!(refused.text().contains("bbox="), "{}", refused.text());
+
+    // A client that gives up at once (a request it drops) and five that ask together: one
+    // measurement, and each answer the same tileset.
+    let db = tempfile::tempdir().unwrap();
+    let state = state_with(&db, &[]).await.unwrap();
+    let app = citymesh::app(state.clone());
+    let impatient = get(&app, "/3dtiles/tileset.json?roofs=osm");
+    assert!(
+        tokio::time::timeout(std::time::Duration::ZERO, impatient)
+            .await
+            .is_err()
+    );
+    let asks: Vec<_> = (0..5)
+        .map(|_| {
+            let app = app.clone();
+            tokio::spawn(async move { get(&app, "/3dtiles/tileset.json?roofs=osm").await })
+        })
+        .collect();
+    let mut bodies = std::collections::HashSet::new();
+    for ask in asks {
+        let answer = ask.await.unwrap();
+        assert_eq!(answer.status, StatusCode::OK, "{}", answer.text());
+        bodies.insert(answer.body.clone());
+    }
+    assert_eq!(bodies.len(), 1);
+    assert_eq!(state.tiles.regions.measurements_started(), 1);
+}

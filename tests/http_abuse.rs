@@ -500,6 +500,41 @@ async fn every_error_has_a_json_body_and_media_types_ignore_case() {
     assert_eq!(r.status(), StatusCode::OK);
 }
 
+/// Round 3, item 6: `/vendor` serves a package's own files, never what a link inside it points
+/// to; an unsatisfiable range gets a 416 whose body says what to fix.
+#[tokio::test]
+async fn vendor_files_stay_inside_their_package_and_a_416_says_why() {
+    let db = tempfile::tempdir().unwrap();
+    let assets = db.path().join("assets");
+    let three = assets.join("three");
+    std::fs::create_dir_all(&three).unwrap();
+    std::fs::write(three.join("three.module.js"), "export const REVISION = '1';").unwrap();
+    let secret = db.path().join("secret.txt");
+    std::fs::write(&secret, "not for clients").unwrap();
+    std::os::unix::fs::symlink(&secret, three.join("leak.js")).unwrap();
+    std::os::unix::fs::symlink(db.path(), three.join("up")).unwrap();
+    let app = demo_app(&db, &["--assets-dir", assets.to_str().unwrap()]).await;
+    let ok = common::get(&app, "/vendor/three/three.module.js").await;
+    assert_eq!(ok.status, StatusCode::OK);
+    assert_eq!(ok.text(), "export const REVISION = '1';");
+    for path in ["/vendor/three/leak.js", "/vendor/three/up/secret.txt", "/vendor/three/up/c.sqlite"] {
+        let (status, _, body) =
+            send(&app, Request::get(path).body(Body::empty()).unwrap()).await;
+        assert_eq!((status, body["error"].as_str()), (StatusCode::NOT_FOUND, Some("not_found")), "{path}");
+    }
+    let (status, headers, body) = send(
+        &app,
+        Request::get("/vendor/three/three.module.js")
+            .header("range", "bytes=1000-2000")
+            .body(Body::empty())
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(status, StatusCode::RANGE_NOT_SATISFIABLE);
+    assert_eq!(body["error"], "range_not_satisfiable");
+    assert_eq!(headers["content-range"], "bytes */28");
+}
+
 #[tokio::test]
 async fn load_time_skips_are_reported_by_id_and_missing_courtyards_repaired() {
     // Kirchfeld as Overpass JSON without one node of way 35538135 and without the courtyard
@@ -1063,4 +1098,126 @@ async fn d12_a_polygon_with_thousands_of_holes_is_refused_before_any_work() {
     );
     // Each courtyard adds its walls: 4 walls of 2 triangles at least.
     assert!(common::glb_triangle_count(&glb) > 256 * 8);
+}
+
+/// An HTTP/2 client over TCP (prior knowledge, h2c) that has sent the preface and SETTINGS:
+/// the request handle and a task driving the connection, which ends when the server closes it.
+async fn h2_connect(
+    addr: &str,
+) -> (
+    h2::client::SendRequest<bytes::Bytes>,
+    h2::PingPong,
+    tokio::task::JoinHandle<()>,
+) {
+    let tcp = tokio::net::TcpStream::connect(addr).await.unwrap();
+    let (send, mut connection) = h2::client::handshake(tcp).await.unwrap();
+    let pings = connection.ping_pong().unwrap();
+    let driver = tokio::spawn(async move {
+        let _ = connection.await;
+    });
+    (send, pings, driver)
+}
+
+/// Sends PINGs one after another until the connection is gone.
+fn keep_pinging(mut pings: h2::PingPong) -> tokio::task::JoinHandle<u64> {
+    tokio::spawn(async move {
+        let mut sent = 0;
+        while pings.ping(h2::Ping::opaque()).await.is_ok() {
+            sent += 1;
+            tokio::time::sleep(Duration::from_millis(100)).await;
+        }
+        sent
+    })
+}
+
+/// `GET path` over HTTP/2: the status and the body.
+async fn h2_get(send: h2::client::SendRequest<bytes::Bytes>, addr: &str, path: &str) -> (u16, String) {
+    let mut send = send.ready().await.unwrap();
+    let request = Request::get(format!("http://{addr}{path}")).body(()).unwrap();
+    let (answer, _) = send.send_request(request, true).unwrap();
+    let answer = answer.await.unwrap();
+    let status = answer.status().as_u16();
+    let mut body = answer.into_body();
+    let mut bytes = Vec::new();
+    while let Some(chunk) = body.data().await {
+        let chunk = chunk.unwrap();
+        let _ = body.flow_control().release_capacity(chunk.len());
+        bytes.extend_from_slice(&chunk);
+    }
+    (status, String::from_utf8_lossy(&bytes).into_owned())
+}
+
+/// Round 3, item 1: HTTP/2 connections that open no stream are closed after the first-byte
+/// timeout (not the idle one), PINGs or not, so they give every slot back, the reserved ones
+/// too; and a connection with no open stream is idle whatever PINGs it sends.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn h2_connections_without_streams_are_closed_pings_or_not() {
+    let db = tempfile::tempdir().unwrap();
+    let (mut child, addr, log) = serve_binary(
+        db.path(),
+        &[
+            "--first-byte-timeout-s",
+            "1",
+            "--header-timeout-s",
+            "60",
+            "--idle-timeout-s",
+            "600",
+            "--request-timeout-s",
+            "60",
+            "--max-connections",
+            "3",
+            "--reserved-connections",
+            "1",
+        ],
+    );
+    std::thread::spawn(move || log.for_each(drop));
+    // Every slot, general and reserved, taken by clients that only send the preface and
+    // SETTINGS, two of them PINGing all the while.
+    let mut held = Vec::new();
+    for i in 0..4 {
+        let (send, pings, driver) = h2_connect(&addr).await;
+        let pinger = (i % 2 == 0).then(|| keep_pinging(pings));
+        held.push((send, driver, pinger));
+    }
+    // The server closes all four (the idle timeout, 600 s, is far beyond this bound).
+    let t0 = std::time::Instant::now();
+    for (_, driver, pinger) in held {
+        eprintln!("DBG {:?}", t0.elapsed());
+        tokio::time::timeout(Duration::from_secs(60), driver)
+            .await
+            .expect("an HTTP/2 connection with no stream was held open")
+            .unwrap();
+        if let Some(p) = pinger {
+            assert!(p.await.unwrap() >= 1, "no PING went through");
+        }
+    }
+    // The slots are free again: /health answers over HTTP/2.
+    eprintln!("DBG free {:?}", t0.elapsed());
+    let (send, _pings, _driver) = h2_connect(&addr).await;
+    let (status, body) = h2_get(send, &addr, "/health").await;
+    assert_eq!(status, 200, "{body}");
+    child.kill().unwrap();
+    child.wait().unwrap();
+
+    // After its request, a connection that only PINGs is idle: closed at the idle timeout (3 s)
+    // though bytes keep flowing.
+    let db = tempfile::tempdir().unwrap();
+    let (mut child, addr, log) = serve_binary(
+        db.path(),
+        &["--idle-timeout-s", "3", "--request-timeout-s", "2"],
+    );
+    std::thread::spawn(move || log.for_each(drop));
+    let (send, pings, driver) = h2_connect(&addr).await;
+    let (status, _) = h2_get(send.clone(), &addr, "/health").await;
+    assert_eq!(status, 200);
+    eprintln!("DBG phase2 {:?}", t0.elapsed());
+    let pinger = keep_pinging(pings);
+    tokio::time::timeout(Duration::from_secs(60), driver)
+        .await
+        .expect("a PINGing HTTP/2 connection with no stream open was held")
+        .unwrap();
+    assert!(pinger.await.unwrap() >= 5, "too few PINGs to tell");
+    drop(send);
+    child.kill().unwrap();
+    child.wait().unwrap();
 }

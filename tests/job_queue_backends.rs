@@ -7,7 +7,7 @@ mod common;
 
 use citymesh::classifier::Prediction;
 use citymesh::db::Database;
-use citymesh::jobs::adapt::{AdaptFailure, AdaptationStore};
+use citymesh::jobs::adapt::{AdaptFailure, AdaptationStore, Lease};
 use citymesh::jobs::{MAX_ATTEMPTS, NewJob, PgJobQueue, RoofJobQueue, SqliteJobQueue};
 use common::postgres::Postgres;
 use std::collections::{BTreeMap, HashSet};
@@ -248,45 +248,98 @@ async fn two_replicas_claiming_at_once_never_take_a_job_twice() {
     assert_eq!(states["queued"] + states["running"], 0, "{states:?}");
 }
 
-/// An adaptation made, ended too early, and one left running by a restart: what the store
-/// answers along the way.
+/// An adaptation made, ended too early, one refused while another runs, one left running with
+/// a lease that ran out, one cancelled: what the store answers along the way.
 async fn adaptations(store: AdaptationStore) -> Vec<serde_json::Value> {
+    let live = Lease {
+        owner: "replica-1".into(),
+        duration: Duration::from_secs(3600),
+    };
+    let dead = Lease {
+        owner: "replica-2".into(),
+        duration: Duration::ZERO,
+    };
+    let area = "8.4,49.0,8.5,49.1";
     let mut seen = Vec::new();
-    let (id, other) = ("a".repeat(32), "b".repeat(32));
+    let [id, other, third, fourth] = ["a", "b", "c", "d"].map(|c| c.repeat(32));
     assert_eq!(store.running("img").await.unwrap(), None);
     store
-        .create(&id, "8.4,49.0,8.5,49.1", "img", "m", [30, 25, 5])
+        .create(&id, area, "img", "m", [30, 25, 5], &live)
         .await
         .unwrap();
     assert_eq!(store.running("img").await.unwrap(), Some(id.clone()));
     assert_eq!(store.running("other").await.unwrap(), None);
+    // While it runs, another start for the same imagery is refused (one statement: the check
+    // and the insert) with the running one's id; another imagery's starts.
+    assert_eq!(
+        store
+            .start(&other, area, "img", "m", [0; 3], &live)
+            .await
+            .unwrap(),
+        Some(id.clone())
+    );
+    assert!(store.get(&other).await.unwrap().is_none());
     let running = store.get(&id).await.unwrap().unwrap();
     assert_eq!((running.state.as_str(), running.percent), ("running", 0.0));
     seen.push(serde_json::to_value(running).unwrap());
     let why = "fewer than 20 hipped examples";
+    let too_few = Err(AdaptFailure::TooFew(why.into()));
+    assert!(store.record(&id, &too_few, false).await.unwrap());
+    // An ended adaptation takes no second outcome.
+    assert!(!store.record(&id, &too_few, false).await.unwrap());
+    let ended = store.get(&id).await.unwrap().unwrap();
+    assert_eq!(ended.state, "too_few");
+    assert_eq!(ended.error.as_deref(), Some(why));
+    assert!(ended.head_id.is_none() && ended.report.is_none());
+    seen.push(serde_json::to_value(ended).unwrap());
+    assert_eq!(store.running("img").await.unwrap(), None);
+    // One left running by a process that died: its lease ran out, so the next start fails it
+    // and starts.
     store
-        .record(&id, &Err(AdaptFailure::TooFew(why.into())))
+        .create(&other, area, "img", "m", [40, 40, 40], &dead)
         .await
         .unwrap();
-    let too_few = store.get(&id).await.unwrap().unwrap();
-    assert_eq!(too_few.state, "too_few");
-    assert_eq!(too_few.error.as_deref(), Some(why));
-    assert!(too_few.head_id.is_none() && too_few.report.is_none());
-    seen.push(serde_json::to_value(too_few).unwrap());
-    assert_eq!(store.running("img").await.unwrap(), None);
-    // Another is left running when the process stops; the next start fails it.
+    assert_eq!(
+        store
+            .start(&third, area, "img", "m", [0; 3], &live)
+            .await
+            .unwrap(),
+        None
+    );
+    let lost = store.get(&other).await.unwrap().unwrap();
+    assert_eq!(lost.state, "failed");
+    seen.push(serde_json::to_value(lost).unwrap());
+    // Only the owner extends a lease, and only while it runs.
+    assert!(!store.extend(&other, &dead).await.unwrap());
+    assert!(!store.extend(&third, &dead).await.unwrap());
+    assert!(store.extend(&third, &live).await.unwrap());
+    // Cancelled while running: its lease is lost, its outcome not taken.
+    assert_eq!(
+        store.cancel(&third).await.unwrap().as_deref(),
+        Some("running")
+    );
+    assert!(!store.extend(&third, &live).await.unwrap());
+    assert!(!store.record(&third, &too_few, false).await.unwrap());
+    let cancelled = store.get(&third).await.unwrap().unwrap();
+    assert_eq!(cancelled.state, "cancelled");
+    seen.push(serde_json::to_value(cancelled).unwrap());
+    // An ended one is left as it is.
+    assert_eq!(
+        store.cancel(&id).await.unwrap().as_deref(),
+        Some("too_few")
+    );
+    assert_eq!(store.cancel(&fourth).await.unwrap(), None);
+    // A restart fails what was left running with a lease that ran out, on either database.
     store
-        .create(&other, "8.4,49.0,8.5,49.1", "img", "m", [40, 40, 40])
+        .create(&fourth, area, "img", "m", [40, 40, 40], &dead)
         .await
         .unwrap();
     assert_eq!(store.interrupt_running().await.unwrap(), 1);
     assert_eq!(store.interrupt_running().await.unwrap(), 0);
-    let interrupted = store.get(&other).await.unwrap().unwrap();
-    assert_eq!(interrupted.state, "failed");
-    seen.push(serde_json::to_value(interrupted).unwrap());
+    assert_eq!(store.get(&fourth).await.unwrap().unwrap().state, "failed");
     assert_eq!(store.running("img").await.unwrap(), None);
     assert!(store.newest_head("img", "m").await.unwrap().is_none());
-    assert!(store.get(&"c".repeat(32)).await.unwrap().is_none());
+    assert!(store.get(&"e".repeat(32)).await.unwrap().is_none());
     seen
 }
 
@@ -296,6 +349,28 @@ async fn sqlite_and_postgres_keep_adaptations_alike() {
     let sqlite = adaptations(AdaptationStore::new(Database::Sqlite(sqlite))).await;
     let pg = Postgres::start();
     let pool = citymesh::db::open_postgres(&pg.url, 4).await.unwrap();
-    let postgres = adaptations(AdaptationStore::new(Database::Postgres(pool))).await;
+    let postgres = adaptations(AdaptationStore::new(Database::Postgres(pool.clone()))).await;
     assert_eq!(sqlite, postgres);
+    // On PostgreSQL, shared by replicas, a restart leaves a live replica's adaptation running
+    // (its lease holds); on SQLite (one process per file) a restart fails whatever ran.
+    let live = Lease {
+        owner: "replica-1".into(),
+        duration: Duration::from_secs(3600),
+    };
+    let store = AdaptationStore::new(Database::Postgres(pool));
+    let id = "f".repeat(32);
+    store
+        .create(&id, "8.4,49.0,8.5,49.1", "img2", "m", [40, 40, 40], &live)
+        .await
+        .unwrap();
+    assert_eq!(store.interrupt_running().await.unwrap(), 0);
+    assert_eq!(store.running("img2").await.unwrap(), Some(id.clone()));
+    let sqlite = AdaptationStore::new(Database::Sqlite(
+        citymesh::db::open(":memory:").await.unwrap(),
+    ));
+    sqlite
+        .create(&id, "8.4,49.0,8.5,49.1", "img2", "m", [40, 40, 40], &live)
+        .await
+        .unwrap();
+    assert_eq!(sqlite.interrupt_running().await.unwrap(), 1);
 }

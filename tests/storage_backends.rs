@@ -358,3 +358,83 @@ async fn deleting_tiles_over_an_area_tells_every_listening_replica_in_the_same_t
     // The tile was gone for B by then.
     assert!(b.get(&key(3), "v1").await.unwrap().is_none());
 }
+
+/// Round 3, item 6: tile misses waiting on a slow Overpass hold no database connection (they
+/// gather their data before taking their generation turn), so `/health` stays 200 on
+/// PostgreSQL while they wait, and no connection sits idle in a transaction.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn misses_waiting_on_upstream_hold_no_database_connection() {
+    use axum::body::Body;
+    use axum::http::{Request, StatusCode};
+    use std::sync::Arc;
+    use tower::ServiceExt as _;
+    // An Overpass that answers only when the test says so, and tells when it is asked.
+    #[derive(Clone)]
+    struct Stub {
+        asked: Arc<tokio::sync::watch::Sender<usize>>,
+        release: Arc<tokio::sync::Semaphore>,
+    }
+    async fn answer(axum::extract::State(stub): axum::extract::State<Stub>) -> &'static str {
+        stub.asked.send_modify(|n| *n += 1);
+        let _ = stub.release.acquire().await.map(|p| p.forget());
+        r#"{"elements": []}"#
+    }
+    let (asked, mut asked_rx) = tokio::sync::watch::channel(0usize);
+    let stub = Stub {
+        asked: Arc::new(asked),
+        release: Arc::new(tokio::sync::Semaphore::new(0)),
+    };
+    let upstream = axum::Router::new()
+        .route("/api/interpreter", axum::routing::post(answer))
+        .with_state(stub.clone());
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let overpass = format!("http://{}/api/interpreter", listener.local_addr().unwrap());
+    tokio::spawn(async move { axum::serve(listener, upstream).await.unwrap() });
+
+    let pg = Postgres::start();
+    let dir = tempfile::tempdir().unwrap();
+    let app = common::app_with(
+        &common::dem_dir(),
+        &dir.path().join("c.sqlite"),
+        &[
+            "--database-url",
+            &pg.url,
+            "--database-max-connections",
+            "4",
+            "--overpass-url",
+            &overpass,
+            "--overpass-retries",
+            "0",
+        ],
+    )
+    .await;
+    // Eight misses in one data tile: all wait for the one Overpass answer.
+    let misses: Vec<_> = (0..8)
+        .map(|i| {
+            let app = app.clone();
+            tokio::spawn(async move {
+                let uri = format!("/tiles/16/{}/22493.glb", 34_290 + (i % 4));
+                let uri = if i >= 4 { format!("{uri}?encoding=meshopt") } else { uri };
+                app.oneshot(Request::get(uri).body(Body::empty()).unwrap())
+                    .await
+                    .unwrap()
+                    .status()
+            })
+        })
+        .collect();
+    asked_rx.wait_for(|n| *n >= 1).await.unwrap();
+    let watcher = citymesh::db::open_postgres(&pg.url, 1).await.unwrap();
+    let (in_transaction,): (i64,) = sqlx::query_as(
+        "SELECT COUNT(*) FROM pg_stat_activity WHERE state LIKE 'idle in transaction%'",
+    )
+    .fetch_one(&watcher)
+    .await
+    .unwrap();
+    assert_eq!(in_transaction, 0, "connections held while Overpass answers");
+    let health = common::get(&app, "/health").await;
+    assert_eq!(health.status, StatusCode::OK, "{}", health.text());
+    stub.release.add_permits(1_000);
+    for miss in misses {
+        assert_eq!(miss.await.unwrap(), StatusCode::OK);
+    }
+}

@@ -21,7 +21,7 @@ mod tile_cache;
 
 pub use budget::MemoryBudget;
 pub use key::{Encoding, Region, RoofSource, TileId, TileKey};
-pub use region_cache::RegionCache;
+pub use region_cache::{RegionCache, Stopped};
 pub use roof_priors::RoofPriors;
 pub use scene_cache::{CachedScene, SceneCache};
 pub use store::{

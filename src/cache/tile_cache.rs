@@ -82,7 +82,7 @@ pub struct TileCache {
     pub scenes: SceneCache,
     /// The tile regions of 3D Tiles trees (measured on the content); invalidated with the
     /// tiles.
-    pub regions: RegionCache,
+    pub regions: RegionCache<crate::error::AppError>,
 }
 
 impl TileCache {
@@ -183,15 +183,20 @@ impl TileCache {
         });
     }
 
-    /// The tile from memory, else SQLite, else `generate` (run once however many ask at once).
-    /// Errors are never cached.
-    pub async fn get_or_generate<F, Fut, E>(
+    /// The tile from memory, else the store, else `generate` on what `prepare` gathered (run
+    /// once however many ask at once). `prepare` (gathering the data, which may wait on an
+    /// upstream) runs before the generation turn is taken, so no database connection is held
+    /// while it waits. Errors are never cached.
+    pub async fn get_or_generate<P, PFut, T, F, Fut, E>(
         &self,
         key: TileKey,
+        prepare: P,
         generate: F,
     ) -> Result<(CachedTile, CacheLevel), E>
     where
-        F: FnOnce() -> Fut,
+        P: FnOnce() -> PFut,
+        PFut: Future<Output = Result<T, E>>,
+        F: FnOnce(T) -> Fut,
         Fut: Future<Output = Result<(Bytes, GenerationStats), E>>,
         E: From<sqlx::Error> + Clone + Send + Sync + 'static,
     {
@@ -229,6 +234,8 @@ impl TileCache {
                     });
                 }
                 self.metrics.cache(backend, false);
+                // Gather first: a turn on PostgreSQL holds a connection until the tile is stored.
+                let prepared = prepare().await?;
                 // Another replica may be generating it: wait for its row rather than repeat it.
                 let lock = match self
                     .store
@@ -258,7 +265,7 @@ impl TileCache {
                     }
                 };
                 level.store(2, Ordering::Relaxed);
-                let (bytes, stats) = generate().await?;
+                let (bytes, stats) = generate(prepared).await?;
                 let etag = etag_of(&bytes);
                 if self.epoch.load(Ordering::SeqCst) == epoch {
                     // Respond first: the row is written after.

@@ -7,7 +7,7 @@ use super::labelled::read_labels;
 use super::{MODEL_RULE, RoofClassifier as _, load_from_args};
 use crate::cli::AdaptRoofsArgs;
 use crate::jobs::adapt::{
-    AdaptationStore, Progress, class_counts, fit_on_imagery, tagged_examples,
+    AdaptationStore, Lease, Progress, class_counts, fit_on_imagery, tagged_examples,
 };
 use crate::jobs::ring_bounds;
 use citymesh_core::roof_image::RoofClass;
@@ -39,7 +39,7 @@ pub fn run_labels(args: &AdaptRoofsArgs) -> anyhow::Result<bool> {
         }
     }
     let (crops, classes): (Vec<_>, Vec<_>) = crops.into_iter().unzip();
-    let head = match fit_head(&classifier, &crops, &classes) {
+    let head = match fit_head(&classifier, &crops, &classes, &|| false) {
         Ok(h) => h,
         Err(e @ AdaptError::TooFew { .. }) => {
             eprintln!("error: {e}");
@@ -77,6 +77,10 @@ pub async fn run_osm(args: &AdaptRoofsArgs) -> anyhow::Result<bool> {
             &imagery.spec().id,
             classifier.model_id(),
             counts,
+            &Lease {
+                owner: "adapt-roofs".to_owned(),
+                duration: std::time::Duration::from_secs(86_400),
+            },
         )
         .await?;
     let bar = if args.quiet {
@@ -85,9 +89,22 @@ pub async fn run_osm(args: &AdaptRoofsArgs) -> anyhow::Result<bool> {
         indicatif::ProgressBar::new(examples.len() as u64)
     };
     let started = std::time::Instant::now();
-    let outcome = fit_on_imagery(&classifier, &imagery, &examples, &Progress::Bar(&bar)).await;
+    let never = tokio_util::sync::CancellationToken::new();
+    let outcome =
+        fit_on_imagery(&classifier, &imagery, &examples, &Progress::Bar(&bar), &never).await;
     bar.finish_and_clear();
-    store.record(&id, &outcome).await?;
+    // The server uses the stored head only when it beats the shipped one, as it would have
+    // fitted it itself; the file is written either way.
+    let better = outcome
+        .as_ref()
+        .is_ok_and(|h| h.report.accuracy > h.report.shipped_accuracy);
+    store.record(&id, &outcome, better).await?;
+    if outcome.is_ok() && !better {
+        eprintln!(
+            "note: the head does not beat the shipped one out of fold: it is stored as \
+             not_better and a server does not use it"
+        );
+    }
     match outcome {
         Ok(head) => {
             print_report(args, &head, 0, started)?;

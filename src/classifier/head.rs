@@ -6,9 +6,8 @@
 use super::onnx::{Embedded, OnnxClassifier};
 use super::{ClassifierError, Prediction, RoofClassifier};
 use citymesh_core::learn::cross_validation::{argmax, fit_examples, predict_example};
-use citymesh_core::learn::{
-    CrossValidation, Example, FitOptions, SoftmaxRegression, cross_validate,
-};
+use citymesh_core::learn::cross_validation::cross_validate_with;
+use citymesh_core::learn::{CrossValidation, Example, FitOptions, SoftmaxRegression};
 use citymesh_core::roof_image::{Crop, RoofClass};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
@@ -24,6 +23,8 @@ pub const FOLDS: usize = 5;
 /// The precision the threshold is chosen for: the least top probability at which the
 /// out-of-fold predictions above it are right this often.
 pub const TARGET_PRECISION: f64 = 0.9;
+/// Crops embedded between two checks for a stop.
+const EMBED_CHUNK: usize = 32;
 /// Largest head file read (bytes).
 const MAX_HEAD_BYTES: u64 = 16 << 20;
 
@@ -73,6 +74,8 @@ pub enum AdaptError {
     Classifier(#[from] ClassifierError),
     #[error("the fit failed: {0}")]
     Fit(String),
+    #[error("stopped before the head was fitted")]
+    Stopped,
 }
 
 impl RoofHead {
@@ -136,18 +139,26 @@ impl RoofHead {
 
 /// Fits a head on labelled crops: embeds them (every pass), cross-validates, chooses the
 /// threshold out of fold, and fits the final head on all of them. Blocking; seconds for a few
-/// hundred crops.
+/// hundred crops. `stop` is asked between batches of crops and between fits: once it answers
+/// true, the fit ends with [`AdaptError::Stopped`].
 pub fn fit_head(
     classifier: &OnnxClassifier,
     crops: &[Crop],
     classes: &[RoofClass],
+    stop: &dyn Fn() -> bool,
 ) -> Result<RoofHead, AdaptError> {
     let mut have = [0usize; 3];
     classes.iter().for_each(|c| have[c.index()] += 1);
     if have.iter().any(|&n| n < MIN_PER_CLASS) {
         return Err(AdaptError::TooFew { have });
     }
-    let embedded: Vec<Embedded> = classifier.classify_embedded(crops)?;
+    let mut embedded: Vec<Embedded> = Vec::with_capacity(crops.len());
+    for chunk in crops.chunks(EMBED_CHUNK) {
+        if stop() {
+            return Err(AdaptError::Stopped);
+        }
+        embedded.extend(classifier.classify_embedded(chunk)?);
+    }
     let shipped_right = embedded
         .iter()
         .zip(classes)
@@ -162,11 +173,24 @@ pub fn fit_head(
         })
         .collect();
     let options = FitOptions::default();
-    let cv: CrossValidation = cross_validate(&examples, 3, FOLDS, options)
-        .ok_or_else(|| AdaptError::Fit("cross-validation failed".into()))?;
+    let fit = |train: &[&Example]| {
+        if stop() {
+            return None;
+        }
+        fit_examples(train, 3, options)
+    };
+    let cv: Option<CrossValidation> =
+        cross_validate_with(&examples, 3, FOLDS, fit, predict_example);
+    if stop() {
+        return Err(AdaptError::Stopped);
+    }
+    let cv = cv.ok_or_else(|| AdaptError::Fit("cross-validation failed".into()))?;
     let labels: Vec<usize> = examples.iter().map(|e| e.label).collect();
     let threshold = choose_threshold(&cv.probabilities, &labels, TARGET_PRECISION);
     let all: Vec<&Example> = examples.iter().collect();
+    if stop() {
+        return Err(AdaptError::Stopped);
+    }
     let regression = fit_examples(&all, 3, options)
         .ok_or_else(|| AdaptError::Fit("the final fit failed".into()))?;
     Ok(RoofHead {

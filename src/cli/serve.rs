@@ -91,6 +91,31 @@ pub struct ServeArgs {
     #[arg(long, env = "CITYMESH_ROOF_THRESHOLD", default_value_t = 0.6)]
     pub roof_threshold: f32,
 
+    /// Megabytes the classification batches (a row and a link per building) may keep in the
+    /// database; past it `POST /classify` answers 503 with Retry-After until batches expire or
+    /// are deleted.
+    #[arg(long, env = "CITYMESH_CLASSIFY_STORE_MB", default_value_t = 64)]
+    pub classify_store_mb: u64,
+
+    /// Share of --classify-store-mb one client (by IP address) may hold in live batches,
+    /// percent; past it that client gets 429 with Retry-After.
+    #[arg(long, env = "CITYMESH_CLASSIFY_CLIENT_SHARE_PERCENT", default_value_t = 25.0)]
+    pub classify_client_share_percent: f64,
+
+    /// Seconds a finished classification batch is kept after its last job ended; then
+    /// `GET /classify/{id}` answers 404 (its predictions stay).
+    #[arg(long, env = "CITYMESH_CLASSIFY_BATCH_TTL_S", default_value_t = 86_400.0)]
+    pub classify_batch_ttl_s: f64,
+
+    /// Put an adapted roof head in use even when its cross-validated accuracy does not beat the
+    /// shipped head's on the same examples (by default such a head is stored as `not_better`).
+    #[arg(long, env = "CITYMESH_ADAPT_ACCEPT_ANY")]
+    pub adapt_accept_any: bool,
+
+    /// Seconds an adaptation may run (cropping and fitting); past it it is stopped and failed.
+    #[arg(long, env = "CITYMESH_ADAPT_MAX_S", default_value_t = 900.0)]
+    pub adapt_max_s: f64,
+
     /// Seconds one Overpass request may take.
     #[arg(long, env = "CITYMESH_OVERPASS_TIMEOUT_S", default_value_t = 60.0)]
     pub overpass_timeout_s: f64,

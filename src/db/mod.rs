@@ -13,6 +13,18 @@ pub use use_notes::UseNotes;
 
 use sqlx::{PgPool, SqlitePool};
 
+/// Runs `$body` with `$pool` bound to the pool of whichever backend `$db` is, for statements
+/// that read the same on both (`$n` placeholders, which SQLite takes too).
+macro_rules! on_pool {
+    ($db:expr, $pool:ident => $body:expr) => {
+        match $db {
+            $crate::db::Database::Sqlite($pool) => $body,
+            $crate::db::Database::Postgres($pool) => $body,
+        }
+    };
+}
+pub(crate) use on_pool;
+
 /// How long a statement waits for a lock, and a request for a connection.
 const BUSY_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(5);
 

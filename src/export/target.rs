@@ -92,7 +92,11 @@ impl ExportTarget {
     /// Writes `bytes` at `key` whole or not at all.
     pub async fn put(&self, key: &str, bytes: bytes::Bytes) -> anyhow::Result<()> {
         match self {
-            ExportTarget::Directory(dir) => Ok(write_whole(&dir.join(key), &bytes)?),
+            ExportTarget::Directory(dir) => {
+                let path = dir.join(key);
+                write_whole(&path, &bytes)
+                    .map_err(|e| anyhow::anyhow!("--out {}: writing {}: {e}", dir.display(), path.display()))
+            }
             ExportTarget::Objects { store, prefix, url } => {
                 store
                     .put(&object_key(prefix, key), bytes.into())

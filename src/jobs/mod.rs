@@ -10,6 +10,7 @@
 
 pub mod adapt;
 mod backend;
+pub mod batch_budget;
 mod index;
 mod postgres;
 mod queue;
@@ -29,6 +30,6 @@ pub use queue::{
     StoredPrediction, footprint_hash, ring_bounds,
 };
 pub use select::{Selection, select_buildings};
-pub use service::{ActiveModel, RoofJobs};
+pub use service::{ActiveModel, RoofJobs, RoofJobsConfig};
 pub use sqlite::SqliteJobQueue;
 pub use token::{is_token, random_token};

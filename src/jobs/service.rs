@@ -1,8 +1,9 @@
 //! The server's roof jobs: the queue on the server's database, the predictions tiles use, and the
 //! workers that run jobs when a classifier and an imagery service are configured.
 
-use super::adapt::AdaptationStore;
+use super::adapt::{AdaptExample, AdaptPolicy, AdaptationStore, run_adaptation};
 use super::backend::JobQueue;
+use super::batch_budget::{BatchBudget, BatchLimits};
 use super::index::PredictionIndex;
 use super::queue::{JobError, RoofJobQueue};
 use super::worker::{CurrentModel, RoundReport, SharedOnDone, WorkerConfig, run_worker};
@@ -11,7 +12,10 @@ use crate::classifier::head::{HeadedClassifier, RoofHead};
 use crate::classifier::onnx::OnnxClassifier;
 use crate::imagery::Imagery;
 use crate::metrics::{Metrics, StateLabels};
-use std::sync::{Arc, RwLock};
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex, RwLock};
+use tokio_util::sync::CancellationToken;
+use tokio_util::task::TaskTracker;
 
 pub struct RoofJobs {
     pub queue: JobQueue,
@@ -27,7 +31,26 @@ pub struct RoofJobs {
     active: RwLock<Arc<ActiveModel>>,
     /// Adaptations of the classifier to this imagery.
     pub adaptations: AdaptationStore,
+    /// How adaptations run here.
+    pub adapt_policy: AdaptPolicy,
+    /// The stops of the adaptations running in this process, by id.
+    adapting: Mutex<HashMap<String, CancellationToken>>,
+    /// Cancelled when the server shuts down: running adaptations stop.
+    stopping: CancellationToken,
+    /// The adaptations running in this process, waited for on shutdown.
+    tasks: TaskTracker,
+    /// What classification batches may keep in the store.
+    pub batches: BatchBudget,
     metrics: Arc<Metrics>,
+}
+
+/// How the server's roof jobs are bounded and run, besides the queue.
+#[derive(Debug, Clone)]
+pub struct RoofJobsConfig {
+    pub batch_limits: BatchLimits,
+    pub adapt: AdaptPolicy,
+    /// Cancelled when the server shuts down.
+    pub stopping: CancellationToken,
 }
 
 /// The model predictions are made by now, and the predictions it made.
@@ -62,6 +85,7 @@ impl RoofJobs {
         base: Option<Arc<OnnxClassifier>>,
         threshold: f32,
         metrics: Arc<Metrics>,
+        config: RoofJobsConfig,
     ) -> Result<Self, JobError> {
         let index = Arc::new(PredictionIndex::load(&queue, &imagery_id, &model_id).await?);
         let classifier = base.clone().map(|b| b as Arc<dyn RoofClassifier>);
@@ -72,7 +96,12 @@ impl RoofJobs {
         }
         let base_model_id = model_id.clone();
         let jobs = Self {
+            batches: BatchBudget::new(queue.database(), config.batch_limits),
             adaptations,
+            adapt_policy: config.adapt,
+            adapting: Mutex::new(HashMap::new()),
+            stopping: config.stopping,
+            tasks: TaskTracker::new(),
             queue,
             imagery_id,
             imagery_attribution,
@@ -134,6 +163,75 @@ impl RoofJobs {
             Err(poisoned) => *poisoned.into_inner() = next,
         }
         Ok(())
+    }
+
+    /// Puts the newest head adapted to this imagery (and not withdrawn) in use, or the shipped
+    /// model when there is none.
+    pub async fn use_newest_or_shipped(&self) -> Result<(), JobError> {
+        let Some(base) = self.base.clone() else {
+            return Ok(());
+        };
+        let base_id = base.model_id().to_owned();
+        if let Some(head) = self
+            .adaptations
+            .newest_head(&self.imagery_id, &base_id)
+            .await?
+        {
+            return self.use_head(head).await;
+        }
+        let index = Arc::new(PredictionIndex::load(&self.queue, &self.imagery_id, &base_id).await?);
+        let threshold = self.active().threshold;
+        let next = Arc::new(ActiveModel {
+            model_id: base_id,
+            classifier: Some(base as Arc<dyn RoofClassifier>),
+            index,
+            threshold,
+        });
+        match self.active.write() {
+            Ok(mut a) => *a = next,
+            Err(poisoned) => *poisoned.into_inner() = next,
+        }
+        Ok(())
+    }
+
+    /// Runs adaptation `id` in the background on `examples` (its row is started).
+    pub fn spawn_adaptation(self: &Arc<Self>, id: String, examples: Vec<AdaptExample>) {
+        let stop = self.stopping.child_token();
+        if let Ok(mut running) = self.adapting.lock() {
+            running.insert(id.clone(), stop.clone());
+        }
+        let jobs = self.clone();
+        self.tasks.spawn(async move {
+            run_adaptation(jobs.clone(), id.clone(), examples, stop).await;
+            if let Ok(mut running) = jobs.adapting.lock() {
+                running.remove(&id);
+            }
+        });
+    }
+
+    /// Stops adaptation `id` if it runs in this process (other processes stop theirs when
+    /// their lease is not extended).
+    pub fn stop_adaptation(&self, id: &str) {
+        if let Ok(running) = self.adapting.lock()
+            && let Some(stop) = running.get(id)
+        {
+            stop.cancel();
+        }
+    }
+
+    /// Whether the server is shutting down.
+    pub fn is_stopping(&self) -> bool {
+        self.stopping.is_cancelled()
+    }
+
+    /// Waits (at most `grace`) for the adaptations running here to record their outcome, once
+    /// the server's stop (`RoofJobsConfig::stopping`) was cancelled.
+    pub async fn shut_down(&self, grace: std::time::Duration) {
+        self.stopping.cancel();
+        self.tasks.close();
+        if tokio::time::timeout(grace, self.tasks.wait()).await.is_err() {
+            tracing::warn!("adaptations still stopping after {} s", grace.as_secs_f64());
+        }
     }
 
     /// Loads the active model's predictions again (another replica may have stored some this

@@ -17,5 +17,5 @@ pub use roofs::{
     ClassifiedRoofs, InferredFigures, InferredRoofs, PriorFigures, RoofFigures, RoofsParam,
     classified_roofs, inferred_roofs,
 };
-pub use scene::{Buildings, Generated, MeshOptions, generate};
+pub use scene::{Buildings, Generated, MeshOptions, gather, generate};
 pub use tiles3d::{subtree, tile_regions};

@@ -57,6 +57,15 @@ pub async fn generate(
     within_timeout(state, generate_within(state, area, buildings, roofs, mesh)).await
 }
 
+/// The source's buildings of an area, gathered under the request timeout (which may ask
+/// upstream): what a cached tile is generated from, gathered before its generation turn.
+pub async fn gather(state: &AppState, area: SceneArea) -> Result<AreaBuildings, AppError> {
+    let bbox = area
+        .bbox()
+        .map_err(|e| AppError::bad_request("invalid_tile", e.to_string()))?;
+    within_timeout(state, async { Ok(state.source.buildings(&bbox).await?) }).await
+}
+
 /// How a generated mesh is made beyond its area and buildings.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct MeshOptions {

@@ -1,7 +1,9 @@
 //! The 3D Tiles answers that are not meshes: the regions of the tree's tiles over a region (for
 //! the tileset) and its binary subtree. Content tiles go through [`super::generate`].
 
-use super::limits::{run_blocking, within_timeout};
+use super::limits::{generation_slot, within_timeout};
+use crate::cache::Stopped;
+use tokio_util::sync::CancellationToken;
 use crate::error::AppError;
 use crate::state::AppState;
 use bytes::Bytes;
@@ -30,40 +32,74 @@ pub async fn tile_regions(
     pitched: bool,
 ) -> Result<Arc<TileRegions>, AppError> {
     let key = (root.to_string(), pitched);
-    state
-        .tiles
-        .regions
-        .get_or_make(key, async {
-            within_timeout(state, async {
-                let buildings = state.source.buildings(&root).await?;
-                let dem = state.dem.clone();
-                let rules = citymesh_core::building::BuildingRules {
-                    heights: state.height_base,
-                    roof_method: state.roof_method,
+    let max_work = state.limits.request_timeout.saturating_mul(MEASURE_TIMEOUTS);
+    let measure = |stop: CancellationToken| {
+        let state = state.clone();
+        async move {
+            let buildings = state.source.buildings(&root).await?;
+            let dem = state.dem.clone();
+            let rules = citymesh_core::building::BuildingRules {
+                heights: state.height_base,
+                roof_method: state.roof_method,
+            };
+            let slot = generation_slot(&state).await?;
+            tokio::task::spawn_blocking(move || {
+                let variants = if pitched {
+                    roof_variants(&buildings.set)
+                } else {
+                    Vec::new()
                 };
-                run_blocking(state, move || {
-                    let variants = if pitched {
-                        roof_variants(&buildings.set)
-                    } else {
-                        Vec::new()
-                    };
-                    let regions = measure_regions(
-                        &root,
-                        ImplicitLayout::leaf_level_of(&root),
-                        &buildings.set,
-                        &|b| dem.lookup(b).model,
-                        &variants,
-                        rules,
-                        &|| false,
-                    )
-                    .ok_or_else(|| AppError::internal("measuring the tiles stopped"))?;
-                    Ok(Arc::new(regions))
-                })
-                .await
+                let regions = measure_regions(
+                    &root,
+                    ImplicitLayout::leaf_level_of(&root),
+                    &buildings.set,
+                    &|b| dem.lookup(b).model,
+                    &variants,
+                    rules,
+                    &|| stop.is_cancelled(),
+                );
+                drop(slot);
+                regions
+                    .map(Arc::new)
+                    .ok_or_else(|| AppError::internal("measuring the tiles stopped"))
             })
-            .await
-        })
-        .await
+            .await?
+        }
+    };
+    // The request waits at most its timeout; the measurement goes on (and is kept) without it.
+    within_timeout(
+        state,
+        state
+            .tiles
+            .regions
+            .get_or_measure(key, measure, &state.stopping, max_work, measure_stopped),
+    )
+    .await
+}
+
+/// How many request timeouts a tree's measurement may take, with or without a client waiting:
+/// long enough that a client retrying after a 503 `timeout` is answered from the kept regions,
+/// short enough that abandoned work is bounded.
+pub const MEASURE_TIMEOUTS: u32 = 4;
+
+/// A measurement that stopped, as the client sees it.
+fn measure_stopped(why: Stopped) -> AppError {
+    match why {
+        Stopped::Shutdown => AppError::Unavailable {
+            code: "shutting_down",
+            detail: "the server is shutting down: try again in a moment".to_owned(),
+            retry_after_secs: 5,
+        },
+        Stopped::TooLong(limit) => AppError::Unavailable {
+            code: "timeout",
+            detail: format!(
+                "measuring this tree's tiles took longer than {} s ({MEASURE_TIMEOUTS} x \
+                 --request-timeout-s): ask for a smaller bbox",
+                limit.as_secs_f64()
+            ),
+            retry_after_secs: 5,
+        },
+    }
 }
 
 /// Every untagged roof as each pitched shape the classifier can choose.

@@ -9,10 +9,13 @@ use crate::error::{AppError, ErrorBody};
 use crate::jobs::{
     BatchCounts, BatchProgress, RoofJobQueue, Selection, ring_bounds, select_buildings,
 };
+use crate::jobs::batch_budget::{Refusal, batch_bytes};
 use crate::pipeline::within_timeout;
+use crate::server::ClientAddr;
 use crate::state::AppState;
 use axum::Json;
 use axum::extract::rejection::{JsonRejection, PathRejection, QueryRejection};
+use axum::Extension;
 use axum::extract::{Path, Query, State};
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
@@ -242,19 +245,52 @@ fn batch_id(path: Result<Path<String>, PathRejection>) -> Result<String, AppErro
     }
 }
 
-/// A batch that exists and was not deleted (a deleted batch is gone for clients; its finished
-/// jobs keep their predictions).
+/// A batch that exists and was neither deleted nor expired (either is gone for clients; its
+/// finished jobs keep their predictions).
 async fn live_batch(state: &AppState, id: &str) -> Result<BatchProgress, AppError> {
+    let kept = state.roofs.batches.limits.ttl.as_secs_f64();
     match state.roofs.queue.progress(id).await? {
         Some(p) if !p.cancelled => Ok(p),
+        Some(_) if state.roofs.batches.is_expired(id).await? => Err(AppError::not_found(
+            "no_such_batch",
+            format!("batch {id} expired: finished batches are kept {kept} s after their last job ended (its predictions stay: GET /classify/predictions)"),
+        )),
         Some(_) => Err(AppError::not_found(
             "no_such_batch",
             format!("batch {id} was deleted"),
         )),
         None => Err(AppError::not_found(
             "no_such_batch",
-            format!("no batch {id}"),
+            format!("no batch {id} (finished batches are kept {kept} s after their last job ended)"),
         )),
+    }
+}
+
+/// The answer to a batch the budget refused: 429 past the client's share, 503 past the whole
+/// budget, both with Retry-After.
+fn refused(refusal: Refusal, ttl: std::time::Duration) -> AppError {
+    let retry_after_secs = ttl.as_secs().clamp(1, 60);
+    match refusal {
+        Refusal::OverShare { used, share } => AppError::TooMany {
+            code: "too_many_batches",
+            detail: format!(
+                "your classification batches keep {used} bytes in the store and this one would \
+                 pass your share ({share} bytes, --classify-client-share-percent): delete \
+                 finished batches (DELETE /classify/{{id}}) or wait for them to expire \
+                 ({} s after they finish)",
+                ttl.as_secs_f64()
+            ),
+            retry_after_secs,
+        },
+        Refusal::OverBudget { used, max } => AppError::Unavailable {
+            code: "batch_store_full",
+            detail: format!(
+                "classification batches keep {used} bytes in the store and this one would pass \
+                 its bound ({max} bytes, --classify-store-mb): try again when batches have \
+                 expired"
+            ),
+            retry_after_secs,
+        },
     }
 }
 
@@ -270,13 +306,15 @@ async fn live_batch(state: &AppState, id: &str) -> Result<BatchProgress, AppErro
         (status = 202, description = "The batch is queued", body = BatchCreated),
         (status = 400, description = "The body or the bbox is invalid, or the area has too many buildings", body = ErrorBody),
         (status = 413, description = "The body is too large", body = ErrorBody),
+        (status = 429, description = "Your batches hold your share of the batch store; see Retry-After", body = ErrorBody),
         (status = 500, description = "An internal failure; the server log has the cause", body = ErrorBody),
         (status = 502, description = "Overpass failed or sent an incomplete answer", body = ErrorBody),
-        (status = 503, description = "Classification is not available on this server (no classifier or no imagery), or Overpass is busy", body = ErrorBody),
+        (status = 503, description = "Classification is not available on this server (no classifier or no imagery), the batch store is full, or Overpass is busy; see Retry-After", body = ErrorBody),
         (status = 504, description = "Overpass did not answer in time", body = ErrorBody),
     ))]
 pub async fn post_classify(
     State(state): State<AppState>,
+    client: Option<Extension<ClientAddr>>,
     body: Result<Json<ClassifyBody>, JsonRejection>,
 ) -> Result<Response, AppError> {
     let request = match body.map_err(bad_json)? {
@@ -351,6 +389,13 @@ pub async fn post_classify(
     }
     skipped.retain(|_, n| *n > 0);
     let model_id = roofs.active().model_id.clone();
+    // What the batch keeps in the store, against the budget and the client's share of it.
+    let client = client.map_or_else(|| "local".to_owned(), |Extension(c)| c.0.ip().to_string());
+    let bytes = batch_bytes(jobs.len());
+    let admission = match roofs.batches.admit(&client, bytes).await? {
+        Ok(admission) => admission,
+        Err(refusal) => return Err(refused(refusal, roofs.batches.limits.ttl)),
+    };
     let (id, counts) = roofs
         .queue
         .enqueue(
@@ -361,6 +406,7 @@ pub async fn post_classify(
             skipped,
         )
         .await?;
+    roofs.batches.record(admission, &id, &client, bytes).await?;
     roofs.refresh_state_metrics().await;
     let created = BatchCreated {
         progress: format!("/classify/{id}"),
@@ -423,6 +469,7 @@ pub async fn delete_batch(
         .cancel(&id)
         .await?
         .ok_or_else(|| AppError::not_found("no_such_batch", format!("no batch {id}")))?;
+    state.roofs.batches.release(&id).await?;
     state.roofs.refresh_state_metrics().await;
     Ok(Json(BatchCancelled { id, cancelled }))
 }

@@ -8,8 +8,9 @@ use super::classify::{BboxValue, centre_of, classification_unavailable, json_rej
 use super::params::parse_bbox;
 use crate::error::{AppError, ErrorBody};
 use crate::jobs::adapt::{
-    AdaptationStatus, ClassCounts, class_counts, run_adaptation, tagged_examples,
+    AdaptExample, AdaptFailure, AdaptationStatus, ClassCounts, class_counts, tagged_examples,
 };
+use crate::pipeline::within_timeout;
 use crate::state::AppState;
 use axum::Json;
 use axum::extract::rejection::{JsonRejection, PathRejection};
@@ -95,7 +96,15 @@ pub async fn post_adapt(
     };
     let model_id = crate::classifier::RoofClassifier::model_id(base.as_ref()).to_owned();
     let bbox = parse_bbox(Some(&request.bbox.text()), &state.limits)?;
-    if let Some(running) = roofs.adaptations.running(&roofs.imagery_id).await? {
+    // The check that none runs and the start are one step: of concurrent requests, one starts
+    // and the others get 409 before gathering anything.
+    let id = crate::jobs::random_token()?;
+    let lease = &roofs.adapt_policy.lease;
+    if let Some(running) = roofs
+        .adaptations
+        .start(&id, &bbox.to_string(), &roofs.imagery_id, &model_id, [0; 3], lease)
+        .await?
+    {
         return Err(AppError::Document {
             status: StatusCode::CONFLICT,
             code: "adaptation_running",
@@ -107,30 +116,34 @@ pub async fn post_adapt(
             field: None,
         });
     }
-    let buildings = state.source.buildings(&bbox).await?;
-    let examples = tagged_examples(buildings.set.records(), |ring| {
-        centre_of(ring).is_some_and(|c| bbox.contains(c[0], c[1]))
-    });
+    let examples = match gather_examples(&state, &bbox).await {
+        Ok(examples) => examples,
+        Err(e) => {
+            let why = AdaptFailure::Failed(format!("gathering the examples failed: {e}"));
+            if let Err(e) = roofs.adaptations.record(&id, &Err(why), false).await {
+                tracing::warn!(adaptation = %id, error = %e, "cannot record the adaptation's end");
+            }
+            return Err(e);
+        }
+    };
     let counts = class_counts(&examples);
+    roofs.adaptations.set_examples(&id, counts).await?;
     let min = crate::classifier::head::MIN_PER_CLASS;
     if counts.iter().any(|&n| n < min) {
         let found: Vec<String> = RoofClass::ALL
             .iter()
             .map(|c| format!("{} {}", counts[c.index()], c.name()))
             .collect();
-        return Err(too_few(format!(
+        let detail = format!(
             "the area has {} tagged buildings; at least {min} of each class are needed: choose a \
              larger area or one with more roof:shape tags (the shipped head stays in use)",
             found.join(", ")
-        )));
+        );
+        let outcome = Err(AdaptFailure::TooFew(detail.clone()));
+        roofs.adaptations.record(&id, &outcome, false).await?;
+        return Err(too_few(detail));
     }
-    let id = crate::jobs::random_token()?;
-    roofs
-        .adaptations
-        .create(&id, &bbox.to_string(), &roofs.imagery_id, &model_id, counts)
-        .await?;
-    let store = roofs.adaptations.clone();
-    tokio::spawn(run_adaptation(roofs.clone(), store, id.clone(), examples));
+    roofs.spawn_adaptation(id.clone(), examples);
     let created = AdaptationCreated {
         progress: format!("/classify/adapt/{id}"),
         id,
@@ -139,6 +152,96 @@ pub async fn post_adapt(
         model_id,
     };
     Ok((StatusCode::ACCEPTED, Json(created)).into_response())
+}
+
+/// The tagged buildings of the box, gathered under the request timeout as a scene's are.
+async fn gather_examples(
+    state: &AppState,
+    bbox: &citymesh_core::geo::GeoBbox,
+) -> Result<Vec<AdaptExample>, AppError> {
+    let buildings = within_timeout(state, async {
+        Ok::<_, AppError>(state.source.buildings(bbox).await?)
+    })
+    .await?;
+    Ok(tagged_examples(buildings.set.records(), |ring| {
+        centre_of(ring).is_some_and(|c| bbox.contains(c[0], c[1]))
+    }))
+}
+
+/// An adaptation as ended by `DELETE`.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct AdaptationEnded {
+    pub id: String,
+    /// `cancelled` (it was running: its work stops) or `withdrawn` (it was done: its head is no
+    /// longer in use).
+    pub state: String,
+    /// The model predictions are made with now.
+    pub model_id: String,
+}
+
+fn adaptation_id(path: Result<Path<String>, PathRejection>) -> Result<String, AppError> {
+    let Path(id) = path.map_err(|e| AppError::bad_request("invalid_id", e.body_text()))?;
+    if id.len() != 32 || !id.bytes().all(|b| b.is_ascii_hexdigit()) {
+        return Err(AppError::bad_request(
+            "invalid_id",
+            format!("'{id}' is not an adaptation id (32 hex digits)"),
+        ));
+    }
+    Ok(id.to_ascii_lowercase())
+}
+
+/// Cancel an adaptation, or withdraw its head.
+///
+/// A running adaptation stops (within one crop or one fold's fit, on whichever replica runs it)
+/// and is `cancelled`; a done one is `withdrawn`: its head is no longer used, and the newest
+/// other head adapted to this imagery, or the shipped one, is used again.
+#[utoipa::path(delete, path = "/classify/adapt/{id}", tag = "classification",
+    params(("id" = String, Path, description = "The id `POST /classify/adapt` answered (32 hex digits)")),
+    responses(
+        (status = 200, description = "Cancelled or withdrawn", body = AdaptationEnded),
+        (status = 400, description = "The id is not 32 hex digits", body = ErrorBody),
+        (status = 404, description = "No such adaptation", body = ErrorBody),
+        (status = 409, description = "The adaptation has already ended without a head in use", body = ErrorBody),
+        (status = 500, description = "An internal failure; the server log has the cause", body = ErrorBody),
+    ))]
+pub async fn delete_adapt(
+    State(state): State<AppState>,
+    path: Result<Path<String>, PathRejection>,
+) -> Result<Json<AdaptationEnded>, AppError> {
+    let id = adaptation_id(path)?;
+    let roofs = &state.roofs;
+    let before = roofs
+        .adaptations
+        .cancel(&id)
+        .await?
+        .ok_or_else(|| AppError::not_found("no_such_adaptation", format!("no adaptation {id}")))?;
+    let ended = match before.as_str() {
+        "running" => {
+            roofs.stop_adaptation(&id);
+            "cancelled"
+        }
+        "done" => {
+            roofs.use_newest_or_shipped().await?;
+            "withdrawn"
+        }
+        other => {
+            return Err(AppError::Document {
+                status: StatusCode::CONFLICT,
+                code: "adaptation_ended",
+                detail: format!(
+                    "adaptation {id} has already ended ({other}) and has no head in use: \
+                     nothing to cancel"
+                ),
+                feature: None,
+                field: None,
+            });
+        }
+    };
+    Ok(Json(AdaptationEnded {
+        id,
+        state: ended.to_owned(),
+        model_id: roofs.active().model_id.clone(),
+    }))
 }
 
 /// An adaptation's progress and report.
@@ -154,17 +257,11 @@ pub async fn get_adapt(
     State(state): State<AppState>,
     path: Result<Path<String>, PathRejection>,
 ) -> Result<Json<AdaptationStatus>, AppError> {
-    let Path(id) = path.map_err(|e| AppError::bad_request("invalid_id", e.body_text()))?;
-    if id.len() != 32 || !id.bytes().all(|b| b.is_ascii_hexdigit()) {
-        return Err(AppError::bad_request(
-            "invalid_id",
-            format!("'{id}' is not an adaptation id (32 hex digits)"),
-        ));
-    }
+    let id = adaptation_id(path)?;
     state
         .roofs
         .adaptations
-        .get(&id.to_ascii_lowercase())
+        .get(&id)
         .await?
         .map(Json)
         .ok_or_else(|| AppError::not_found("no_such_adaptation", format!("no adaptation {id}")))

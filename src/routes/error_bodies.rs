@@ -83,9 +83,9 @@ pub async fn json_errors(request: Request, next: Next) -> Response {
         return response;
     }
     let path = uri.path();
-    let (code, detail) = match status {
+    let (code, detail): (std::borrow::Cow<'static, str>, String) = match status {
         StatusCode::NOT_FOUND => (
-            "not_found",
+            "not_found".into(),
             format!("nothing is served at {path}; see /docs for the API"),
         ),
         StatusCode::METHOD_NOT_ALLOWED => {
@@ -100,18 +100,25 @@ pub async fn json_errors(request: Request, next: Next) -> Response {
             } else {
                 format!("{path} does not answer {method}; it answers {allowed}")
             };
-            ("method_not_allowed", detail)
+            ("method_not_allowed".into(), detail)
         }
         StatusCode::REQUEST_TIMEOUT => (
-            "timeout",
+            "timeout".into(),
             "the request body did not arrive in time (--body-timeout-s)".to_owned(),
         ),
         StatusCode::PAYLOAD_TOO_LARGE => (
-            "too_large",
+            "too_large".into(),
             "the request body is over this server's limit".to_owned(),
         ),
+        StatusCode::RANGE_NOT_SATISFIABLE => (
+            "range_not_satisfiable".into(),
+            format!(
+                "the Range header asks for bytes {path} does not have; Content-Range gives its \
+                 size: ask for bytes=0-(size-1) or fewer"
+            ),
+        ),
         _ => (
-            "error",
+            status_code_name(status),
             format!(
                 "{} {}",
                 status.as_u16(),
@@ -119,12 +126,21 @@ pub async fn json_errors(request: Request, next: Next) -> Response {
             ),
         ),
     };
-    // Keep what the client needs (Allow, Retry-After, CORS); replace the body.
-    let mut answer = json_error(status, code, detail);
+    // Keep what the client needs (Allow, Retry-After, CORS, Content-Range); replace the body.
+    let mut answer = json_error(status, &code, detail);
     for (name, value) in response.headers() {
         if name != header::CONTENT_TYPE && name != header::CONTENT_LENGTH {
             answer.headers_mut().insert(name.clone(), value.clone());
         }
     }
     answer
+}
+
+/// A status's reason as an error code (`unsupported_media_type`), `error` when it has none.
+fn status_code_name(status: StatusCode) -> std::borrow::Cow<'static, str> {
+    status.canonical_reason().map_or("error".into(), |r| {
+        r.to_ascii_lowercase()
+            .replace(|c: char| !c.is_ascii_alphanumeric(), "_")
+            .into()
+    })
 }

@@ -15,6 +15,7 @@ mod headers;
 mod health;
 mod metrics;
 mod pages;
+mod vendor;
 mod params;
 mod procedural;
 mod request_body;
@@ -101,7 +102,7 @@ fn api_router() -> OpenApiRouter<AppState> {
         .routes(routes!(classify::predictions))
         .routes(routes!(classify::get_batch, classify::delete_batch))
         .routes(routes!(classify_adapt::post_adapt))
-        .routes(routes!(classify_adapt::get_adapt))
+        .routes(routes!(classify_adapt::get_adapt, classify_adapt::delete_adapt))
 }
 
 /// Renames the suffixed paths to the form clients call.
@@ -150,15 +151,20 @@ pub fn app(state: AppState) -> Router {
             .and(NotForContentType::IMAGES),
     );
     let (router, doc) = api_router().split_for_parts();
+    // Each package's files, never what a link inside it points to elsewhere.
+    let package = |dir: std::path::PathBuf| {
+        let guard = axum::middleware::from_fn_with_state(std::sync::Arc::new(dir.clone()), vendor::contained);
+        tower::Layer::layer(&guard, ServeDir::new(dir))
+    };
     router
-        .nest_service("/vendor/three", ServeDir::new(assets.join("three")))
+        .nest_service("/vendor/three", package(assets.join("three")))
         .nest_service(
             "/vendor/3d-tiles-renderer",
-            ServeDir::new(assets.join("3d-tiles-renderer")),
+            package(assets.join("3d-tiles-renderer")),
         )
         .nest_service(
             "/vendor/cesium",
-            ServeDir::new(assets.join("cesium/Build/Cesium")),
+            package(assets.join("cesium/Build/Cesium")),
         )
         .merge(SwaggerUi::new("/docs").url("/openapi.json", with_suffixes(doc)))
         .fallback(not_found)

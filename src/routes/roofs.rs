@@ -7,7 +7,7 @@ use crate::cache::{RoofSource, TileKey};
 use crate::error::AppError;
 use crate::pipeline::{
     Buildings, Generated, InferredFigures, MeshOptions, RoofFigures, RoofsParam, classified_roofs,
-    generate, inferred_roofs,
+    gather, generate, inferred_roofs,
 };
 use crate::source::AreaBuildings;
 use crate::state::AppState;
@@ -89,11 +89,15 @@ pub async fn cached_tile(
     if roofs == RoofsParam::Osm {
         let (cached, level) = state
             .tiles
-            .get_or_generate(key, || async {
-                let mesh = MeshOptions::new(state, key.encoding);
-                let g = generate(state, area, Buildings::FromSource, None, mesh).await?;
-                Ok::<_, AppError>((g.glb, g.stats))
-            })
+            .get_or_generate(
+                key,
+                || gather(state, area),
+                |buildings| async {
+                    let mesh = MeshOptions::new(state, key.encoding);
+                    let g = generate(state, area, Buildings::Loaded(buildings), None, mesh).await?;
+                    Ok::<_, AppError>((g.glb, g.stats))
+                },
+            )
             .await?;
         return Ok(cached_response(
             request_headers,
@@ -106,11 +110,14 @@ pub async fn cached_tile(
     let key = key.with_roofs(plan.source);
     let (cached, level) = state
         .tiles
-        .get_or_generate(key, || async {
+        .get_or_generate(
+            key,
+            || async { Ok::<_, AppError>(plan.buildings) },
+            |buildings| async {
             let g = generate(
                 state,
                 area,
-                Buildings::Loaded(plan.buildings),
+                Buildings::Loaded(buildings),
                 Some(plan.choice),
                 MeshOptions::new(state, key.encoding),
             )

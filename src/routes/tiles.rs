@@ -6,7 +6,7 @@ use super::roofs::cached_tile;
 use super::schemas::GlbBytes;
 use crate::cache::TileKey;
 use crate::error::{AppError, ErrorBody};
-use crate::pipeline::{Buildings, MeshOptions, RoofsParam, generate};
+use crate::pipeline::{Buildings, MeshOptions, RoofsParam, gather, generate};
 use crate::state::AppState;
 use axum::extract::rejection::PathRejection;
 use axum::extract::{Path, RawQuery, Request, State};
@@ -73,11 +73,14 @@ pub async fn tile_glb(
         RoofsParam::Osm => {
             let (cached, level) = state
                 .tiles
-                .get_or_generate(key, || async {
+                .get_or_generate(
+                    key,
+                    || gather(&state, key.tile.area()),
+                    |buildings| async {
                     let g = generate(
                         &state,
                         key.tile.area(),
-                        Buildings::FromSource,
+                        Buildings::Loaded(buildings),
                         None,
                         MeshOptions::new(&state, encoding),
                     )

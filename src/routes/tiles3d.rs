@@ -90,12 +90,26 @@ fn root_for(state: &AppState, text: Option<&str>) -> Result<GeoBbox, AppError> {
     if let Some(t) = text {
         return parse_bbox(Some(t), &state.limits);
     }
-    state.source.extent().ok_or_else(|| {
+    let extent = state.source.extent().ok_or_else(|| {
         AppError::bad_request(
             "missing_bbox",
             "this server fetches OSM data by area (or has none loaded): add \
              ?bbox=minLon,minLat,maxLon,maxLat",
         )
+    })?;
+    // The content URIs name the root: a root the content routes would refuse is refused here,
+    // so a tileset never lists a URI that answers 400.
+    parse_bbox(Some(&extent.to_string()), &state.limits).map_err(|e| match e {
+        AppError::BadRequest { code, detail } if code == "bbox_too_large" => {
+            AppError::bad_request(
+                "bbox_too_large",
+                format!(
+                    "the served buildings span {extent}, more than one tileset may cover: {detail}; \
+                     add ?bbox=minLon,minLat,maxLon,maxLat for a part"
+                ),
+            )
+        }
+        other => other,
     })
 }
 

@@ -5,19 +5,22 @@
 //! request headers within `--header-timeout-s`, and no connection silent for longer than
 //! `--idle-timeout-s` (neither reading nor writing: an idle keep-alive, a client that stopped
 //! sending its request, or one that stopped reading its answer). Request bodies are bounded in
-//! time by the router (`--body-timeout-s`, a total deadline). On shutdown, requests in flight
-//! finish.
+//! time by the router (`--body-timeout-s`, a total deadline). The same deadlines hold for HTTP/2
+//! counted in requests, not bytes ([`super::streams`]): a connection that opens no stream within
+//! `--first-byte-timeout-s`, or has no open stream for `--idle-timeout-s`, is closed, whatever
+//! PINGs or SETTINGS it sends. On shutdown, requests in flight finish.
 
 use super::parse_errors;
+use super::streams::Streams;
 use axum::Router;
 use hyper_util::rt::{TokioExecutor, TokioIo, TokioTimer};
 use hyper_util::server::conn::auto::Builder;
 use hyper_util::server::graceful::GracefulShutdown;
-use hyper_util::service::TowerToHyperService;
 use std::future::Future;
 use std::io;
 use std::pin::Pin;
 use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::task::{Context, Poll};
 use std::time::Duration;
 use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
@@ -102,9 +105,9 @@ pub async fn serve(
         // is in use at the moment this client arrives (picking before accepting would hand a
         // reserved slot, taken while the general ones were briefly full, to whoever came next).
         // At most this one accepted client waits for a slot; the others wait in the backlog.
-        let stream = tokio::select! {
+        let (stream, peer) = tokio::select! {
             accepted = listener.accept() => match accepted {
-                Ok((stream, _)) => stream,
+                Ok(accepted) => accepted,
                 Err(e) => {
                     // Out of file descriptors and the like: wait a moment rather than spin.
                     tracing::warn!("accept failed: {e}");
@@ -130,24 +133,45 @@ pub async fn serve(
             break;
         };
         let _ = stream.set_nodelay(true);
+        let http2 = Arc::new(AtomicBool::new(false));
         let io = TokioIo::new(IdleTimeout::new(
             stream,
             limits.first_byte_timeout,
             limits.idle_timeout,
+            http2.clone(),
         ));
-        let service = TowerToHyperService::new(if is_reserved {
-            reserved_app.clone()
-        } else {
-            app.clone()
-        });
+        let streams = Streams::new();
+        let service = streams.service(
+            if is_reserved {
+                reserved_app.clone()
+            } else {
+                app.clone()
+            },
+            peer,
+        );
         let connection = graceful.watch(
             builder
                 .serve_connection_with_upgrades(io, service)
                 .into_owned(),
         );
+        // Before its first request, an HTTP/2 connection has the first-byte limit (its request
+        // comes whole in the frames after the preface); an HTTP/1 one has the first-byte and the
+        // header limits, which the stream and hyper enforce sooner (this is their backstop).
+        let first_request = move || {
+            if http2.load(Ordering::Relaxed) {
+                limits.first_byte_timeout
+            } else {
+                limits.first_byte_timeout + limits.header_timeout
+            }
+        };
         tokio::spawn(async move {
-            if let Err(e) = connection.await {
-                tracing::debug!("connection closed: {e}");
+            tokio::select! {
+                served = connection => if let Err(e) = served {
+                    tracing::debug!("connection closed: {e}");
+                },
+                () = streams.idle_for_too_long(first_request, limits.idle_timeout) => {
+                    tracing::debug!("connection closed: no request open for too long");
+                }
             }
             drop(permit);
         });
@@ -176,10 +200,14 @@ struct IdleTimeout {
     idle_limit: Duration,
     last_traffic: Instant,
     deadline: Pin<Box<Sleep>>,
+    /// Set when the client's first bytes are the HTTP/2 preface.
+    http2: Arc<AtomicBool>,
+    /// Whether the client has sent anything yet.
+    spoken: bool,
 }
 
 impl IdleTimeout {
-    fn new(inner: TcpStream, first_byte: Duration, idle: Duration) -> Self {
+    fn new(inner: TcpStream, first_byte: Duration, idle: Duration, http2: Arc<AtomicBool>) -> Self {
         let first = first_byte.min(idle);
         Self {
             inner,
@@ -188,6 +216,8 @@ impl IdleTimeout {
             idle_limit: idle,
             last_traffic: Instant::now(),
             deadline: Box::pin(tokio::time::sleep(first)),
+            http2,
+            spoken: false,
         }
     }
 
@@ -225,6 +255,12 @@ impl AsyncRead for IdleTimeout {
         match Pin::new(&mut self.inner).poll_read(cx, buf) {
             Poll::Ready(result) => {
                 if buf.filled().len() > before {
+                    if !self.spoken {
+                        self.spoken = true;
+                        // The preface starts "PRI * HTTP/2.0"; no HTTP/1 method is "PRI".
+                        let is_h2 = buf.filled()[before..].starts_with(b"PRI ");
+                        self.http2.store(is_h2, Ordering::Relaxed);
+                    }
                     self.active();
                     // The client has spoken: from now on, the idle limit.
                     self.limit = self.idle_limit;

@@ -3,9 +3,11 @@
 //! on SIGINT or SIGTERM.
 
 mod connections;
+mod streams;
 mod parse_errors;
 
 pub use connections::ConnectionLimits;
+pub use streams::ClientAddr;
 
 use crate::cache::{
     MemoryBudget, RoofPriors, TileCache, TileStore, invalidation, replica_invalidation,
@@ -75,6 +77,8 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         "--overpass-url needs at least one endpoint"
     );
     let database = args.database.open().await?;
+    // Cancelled on shutdown: long work (adaptations, tree measurements) stops.
+    let stopping = tokio_util::sync::CancellationToken::new();
     // Who this process is in the announcements it sends other replicas.
     let replica = crate::jobs::random_token()?;
     let dem_dir = args.dem_dir.clone();
@@ -214,6 +218,7 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
             classifier.clone(),
             args.roof_threshold.clamp(0.0, 1.0),
             metrics.clone(),
+            roof_jobs_config(args, &replica, &stopping)?,
         )
         .await?,
     );
@@ -231,6 +236,7 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         classifier,
         roofs,
         priors,
+        stopping,
         cors_origins: Arc::new(args.cors_origin.clone()),
         memory_budget: memory,
         height_base,
@@ -257,6 +263,46 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
             body_timeout: Duration::from_secs_f64(args.body_timeout_s),
         },
     }))
+}
+
+/// The bounds on classification batches and adaptations the options give.
+fn roof_jobs_config(
+    args: &ServeArgs,
+    replica: &str,
+    stopping: &tokio_util::sync::CancellationToken,
+) -> anyhow::Result<crate::jobs::RoofJobsConfig> {
+    use crate::jobs::adapt::{AdaptPolicy, Lease};
+    use crate::jobs::batch_budget::BatchLimits;
+    anyhow::ensure!(
+        (0.0..=100.0).contains(&args.classify_client_share_percent),
+        "--classify-client-share-percent must be 0 to 100"
+    );
+    for (flag, value) in [
+        ("--classify-batch-ttl-s", args.classify_batch_ttl_s),
+        ("--adapt-max-s", args.adapt_max_s),
+    ] {
+        anyhow::ensure!(
+            value >= 0.0 && value.is_finite() && value < 1e9,
+            "{flag} must be a number of seconds, 0 or more"
+        );
+    }
+    let max_bytes = args.classify_store_mb.saturating_mul(1 << 20);
+    Ok(crate::jobs::RoofJobsConfig {
+        batch_limits: BatchLimits {
+            max_bytes,
+            client_bytes: (max_bytes as f64 * args.classify_client_share_percent / 100.0) as u64,
+            ttl: Duration::from_secs_f64(args.classify_batch_ttl_s),
+        },
+        adapt: AdaptPolicy {
+            accept_any: args.adapt_accept_any,
+            max_run: Duration::from_secs_f64(args.adapt_max_s),
+            lease: Lease {
+                owner: replica.to_owned(),
+                duration: Duration::from_secs_f64(args.classify_lease_s.clamp(1.0, 86_400.0)),
+            },
+        },
+        stopping: stopping.clone(),
+    })
 }
 
 /// Runs `citymesh serve` until SIGINT or SIGTERM.
@@ -310,16 +356,18 @@ pub async fn run(args: ServeArgs) -> anyhow::Result<()> {
         idle_timeout: Duration::from_secs_f64(args.idle_timeout_s),
     };
     let tiles = state.tiles.clone();
-    connections::serve(
-        listener,
-        crate::routes::app(state),
-        limits,
-        shutdown_signal(),
-    )
-    .await;
+    let roofs = state.roofs.clone();
+    let stopping = state.stopping.clone();
+    let signal = async move {
+        shutdown_signal().await;
+        // Long work stops now; requests in flight finish.
+        stopping.cancel();
+    };
+    connections::serve(listener, crate::routes::app(state), limits, signal).await;
     // Tiles generated last are written to the database after their responses: finish those
     // writes.
     tiles.flush().await;
+    roofs.shut_down(Duration::from_secs(10)).await;
     for w in workers {
         w.abort();
     }

@@ -4,11 +4,11 @@ use super::data_tiles::data_tile::DATA_ZOOM;
 use super::{AreaBuildings, BuildingSource, DataChanged, PriorScope, SourceError, skips_near};
 use citymesh_core::building::set::BuildingSet;
 use citymesh_core::geo::{GeoBbox, TileCoord};
-use citymesh_core::osm::{BuildingRecord, OsmError, Repaired, Skipped, read_buildings};
+use citymesh_core::osm::{BuildingRecord, OsmError, OsmFormat, Repaired, Skipped, read_buildings};
 use futures_util::future::BoxFuture;
 use std::collections::HashSet;
 use std::hash::{DefaultHasher, Hash, Hasher};
-use std::io::Read;
+use std::io::{BufRead as _, Read};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use tokio::sync::broadcast;
@@ -23,6 +23,12 @@ pub enum OsmFileError {
     },
     #[error("{path}: {source} (give OSM PBF, OSM XML or Overpass JSON, optionally .gz)")]
     Format { path: String, source: OsmError },
+    #[error(
+        "{path}: more than {cap} bytes{} (the limit is 4 GiB, and a gzip file may grow at most \
+         100 times its size): split the file, e.g. with osmium extract",
+        if *gzip { " once gunzipped" } else { "" }
+    )]
+    TooLarge { path: String, cap: u64, gzip: bool },
 }
 
 /// Most buildings whose files teach one roof prior together (about a city of half a million
@@ -114,29 +120,55 @@ impl BuildingSource for FileSource {
     }
 }
 
-/// Largest decompressed OSM file accepted (4 GiB): guards against gzip bombs.
-const MAX_OSM_BYTES: u64 = 4 << 30;
+/// Largest OSM file accepted, read or gunzipped (4 GiB).
+pub const MAX_OSM_BYTES: u64 = 4 << 30;
+/// Most a gzip file may grow when gunzipped, as a multiple of its size: OSM XML and Overpass
+/// JSON compress 10 to 20 times, so more is a gzip bomb (a file of gzipped zeros grows about a
+/// thousand times).
+pub const MAX_GZIP_RATIO: u64 = 100;
+/// Bytes read before the format is recognised: a file that is no OSM format is refused after
+/// these, however large it is (a sparse file of zeros, a video renamed `.osm`).
+const SNIFF_BYTES: u64 = 64;
 
-/// The bytes of an OSM file, gunzipped when it is gzip.
+/// The bytes of an OSM file, gunzipped when it is gzip. The format is recognised from the first
+/// bytes before the rest is read, and what is read is capped ([`MAX_OSM_BYTES`], and
+/// [`MAX_GZIP_RATIO`] times the file for gzip): a bad or hostile file is refused, naming it,
+/// after at most the cap.
 pub fn read_osm_file(path: &Path) -> Result<Vec<u8>, OsmFileError> {
-    let io = |source| OsmFileError::Io {
-        path: path.display().to_string(),
-        source,
+    let name = || path.display().to_string();
+    let io = |source| OsmFileError::Io { path: name(), source };
+    let file = std::fs::File::open(path).map_err(io)?;
+    let size = file.metadata().map_err(io)?.len();
+    let mut file = std::io::BufReader::new(file);
+    let gzip = file.fill_buf().map_err(io)?.starts_with(&[0x1f, 0x8b]);
+    let (mut reader, cap): (Box<dyn Read>, u64) = if gzip {
+        let cap = size.saturating_mul(MAX_GZIP_RATIO).clamp(1 << 20, MAX_OSM_BYTES);
+        (Box::new(flate2::bufread::GzDecoder::new(file)), cap)
+    } else {
+        (Box::new(file), MAX_OSM_BYTES)
     };
-    let mut raw = Vec::new();
-    std::fs::File::open(path)
-        .map_err(io)?
-        .read_to_end(&mut raw)
+    let mut out = Vec::new();
+    (&mut reader)
+        .take(SNIFF_BYTES)
+        .read_to_end(&mut out)
         .map_err(io)?;
-    if raw.starts_with(&[0x1f, 0x8b]) {
-        let mut out = Vec::new();
-        flate2::read::GzDecoder::new(&raw[..])
-            .take(MAX_OSM_BYTES)
-            .read_to_end(&mut out)
-            .map_err(io)?;
-        return Ok(out);
+    if OsmFormat::sniff(&out).is_none() {
+        return Err(OsmFileError::Format {
+            path: name(),
+            source: OsmError::UnknownFormat,
+        });
     }
-    Ok(raw)
+    if !gzip && size > MAX_OSM_BYTES {
+        return Err(OsmFileError::TooLarge { path: name(), cap: MAX_OSM_BYTES, gzip });
+    }
+    reader
+        .take(cap.saturating_add(1).saturating_sub(out.len() as u64))
+        .read_to_end(&mut out)
+        .map_err(io)?;
+    if out.len() as u64 > cap {
+        return Err(OsmFileError::TooLarge { path: name(), cap, gzip });
+    }
+    Ok(out)
 }
 
 /// Reads every file; a building found in several files is kept once. Blocking.
@@ -197,6 +229,50 @@ mod tests {
     #![allow(clippy::unwrap_used)] // test code: failing is the point
     use super::*;
     use citymesh_core::procedural::{ProceduralParams, generate_city};
+
+    fn gzip(bytes: &[u8]) -> Vec<u8> {
+        use std::io::Write as _;
+        let mut z = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
+        z.write_all(bytes).unwrap();
+        z.finish().unwrap()
+    }
+
+    #[test]
+    fn hostile_files_are_refused_naming_them_after_a_bounded_read() {
+        let dir = tempfile::tempdir().unwrap();
+        // A sparse file of 2 GiB (zeros): refused on its first bytes.
+        let sparse = dir.path().join("sparse.osm");
+        std::fs::File::create(&sparse).unwrap().set_len(2 << 30).unwrap();
+        let e = read_osm_file(&sparse).unwrap_err();
+        assert!(matches!(e, OsmFileError::Format { source: OsmError::UnknownFormat, .. }), "{e}");
+        assert!(e.to_string().contains("sparse.osm"), "{e}");
+        // Gzipped zeros: refused on their first gunzipped bytes.
+        let zeros = dir.path().join("zeros.osm.gz");
+        std::fs::write(&zeros, gzip(&vec![0u8; 64 << 20])).unwrap();
+        assert!(matches!(
+            read_osm_file(&zeros).unwrap_err(),
+            OsmFileError::Format { source: OsmError::UnknownFormat, .. }
+        ));
+        // XML that grows 1,000-fold: refused at the cap, 100 times the file (at least 1 MiB).
+        let mut xml = b"<osm>".to_vec();
+        xml.resize(64 << 20, b' ');
+        let bomb = dir.path().join("bomb.osm.gz");
+        let packed = gzip(&xml);
+        assert!(packed.len() < (64 << 20) / 500);
+        std::fs::write(&bomb, &packed).unwrap();
+        let e = read_osm_file(&bomb).unwrap_err();
+        let cap = (packed.len() as u64 * MAX_GZIP_RATIO).max(1 << 20);
+        assert!(
+            matches!(e, OsmFileError::TooLarge { cap: c, gzip: true, .. } if c == cap),
+            "{e}"
+        );
+        assert!(e.to_string().contains("bomb.osm.gz"), "{e}");
+        // A gzip file within the ratio reads whole.
+        let fine = dir.path().join("fine.osm.gz");
+        let small = b"<osm version=\"0.6\"></osm>".to_vec();
+        std::fs::write(&fine, gzip(&small)).unwrap();
+        assert_eq!(read_osm_file(&fine).unwrap(), small);
+    }
 
     #[test]
     fn large_file_sets_teach_priors_by_data_tile() {

@@ -1,5 +1,5 @@
-//! The server's request parsing, through its router: batch ids and bodies of the
-//! classification routes, and `Accept` headers of `/scene`. Every answer must be a JSON error
+//! The server's request parsing, through its router: batch and adaptation ids and bodies of the
+//! classification routes (following, deleting, cancelling), and `Accept` headers of `/scene`. Every answer must be a JSON error
 //! or a success, never a 500.
 
 use axum::body::Body;
@@ -63,7 +63,7 @@ pub fn requests(bytes: &[u8]) {
         .filter(|c| c.is_ascii_graphic() && !matches!(c, '?' | '#' | '/' | '%'))
         .take(200)
         .collect();
-    let request = match pick % 5 {
+    let request = match pick % 7 {
         0 => Request::get(format!("/classify/{path_safe}")).body(Body::empty()),
         1 => Request::delete(format!("/classify/{path_safe}")).body(Body::empty()),
         2 => Request::post("/classify")
@@ -72,6 +72,8 @@ pub fn requests(bytes: &[u8]) {
         3 => Request::post("/classify/adapt")
             .header("content-type", "application/json")
             .body(Body::from(rest.to_vec())),
+        5 => Request::get(format!("/classify/adapt/{path_safe}")).body(Body::empty()),
+        6 => Request::delete(format!("/classify/adapt/{path_safe}")).body(Body::empty()),
         _ => {
             let accept: String = text
                 .chars()
@@ -98,7 +100,7 @@ pub fn requests(bytes: &[u8]) {
     assert!(
         status.as_u16() != 500,
         "500 for route {}: {}",
-        pick % 5,
+        pick % 7,
         String::from_utf8_lossy(&body)
     );
     if status.is_client_error() || status.is_server_error() {

@@ -7,6 +7,7 @@
 mod building;
 mod driver;
 mod http;
+mod import;
 mod targets;
 
 pub use building::decode_building;

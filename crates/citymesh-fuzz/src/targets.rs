@@ -41,7 +41,7 @@ const HOLES_SEED: &str = r#"{"type": "FeatureCollection", "features": [{"type": 
  [[8.4007, 49.0003], [8.4007, 49.0004], [8.4008, 49.0004], [8.4008, 49.0003], [8.4007, 49.0003]]]}}]}"#;
 
 /// Every target.
-pub const TARGETS: [Target; 10] = [
+pub const TARGETS: [Target; 11] = [
     Target {
         name: "osm_pbf",
         run: osm,
@@ -82,6 +82,17 @@ pub const TARGETS: [Target; 10] = [
             "\u{2}{\"type\": \"FeatureCollection\", \"features\": [{\"type\": \"Feature\", \"properties\": {\"osm_id\": \"way/1\"}, \"geometry\": {\"type\": \"Point\", \"coordinates\": [8.4, 49.0]}}]}",
             "\u{3}{\"bbox\": \"8.4,49.0,8.401,49.001\"}",
             "\u{4}model/gltf-binary;q=0.5, application/json;q=0.9, */*;q=0.1",
+            "\u{5}0123456789abcdef0123456789abcdef",
+            "\u{6}0123456789abcdef0123456789abcdef",
+        ],
+    },
+    Target {
+        name: "import",
+        run: super::import::import,
+        seeds: &[],
+        inline: &[
+            r#"{"elements":[{"type":"node","id":1,"lat":49.01,"lon":8.4},{"type":"node","id":2,"lat":49.01,"lon":8.4002},{"type":"node","id":3,"lat":49.0102,"lon":10.4002},{"type":"node","id":4,"lat":49.0102,"lon":8.4},{"type":"way","id":77,"nodes":[1,2,3,4,1],"tags":{"building":"yes"}}]}"#,
+            r#"<osm version="0.6"><node id="1" lat="49.01" lon="8.4"/><node id="2" lat="49.01" lon="8.4002"/><node id="3" lat="49.0102" lon="8.4002"/><node id="3" lat="52.0102" lon="8.4002"/><node id="4" lat="49.0102" lon="8.4"/><way id="77"><nd ref="1"/><nd ref="2"/><nd ref="3"/><nd ref="4"/><nd ref="1"/><tag k="building" v="yes"/></way></osm>"#,
         ],
     },
     Target {

@@ -4,7 +4,7 @@
 //! generated from them (`crate::import`).
 
 use super::data_tile::{DATA_ZOOM, affected_area};
-use super::store::{DataOrigin, OsmTileStore};
+use super::store::OsmTileStore;
 use crate::source::read_osm_file;
 use anyhow::Context;
 use citymesh_core::building::cluster::record_bounds;
@@ -19,6 +19,8 @@ use std::path::PathBuf;
 pub struct ImportReport {
     pub buildings: usize,
     pub skipped: usize,
+    /// The skipped buildings by id, with why (`too_large`, `missing_nodes`, ...).
+    pub skips: Vec<(String, &'static str)>,
     pub data_tiles: usize,
     pub changed_data_tiles: usize,
     /// The areas whose served content may have used the changed data tiles.
@@ -65,6 +67,7 @@ pub async fn import_files(
         })
         .await??;
         report.skipped += osm.skipped.len();
+        report.skips.extend(osm.skipped.iter().map(|s| (s.id.to_string(), s.reason.name())));
         for b in osm.buildings {
             if seen.insert(b.id) {
                 records.push(b);
@@ -95,15 +98,18 @@ pub async fn import_files(
     }
     report.data_tiles = by_tile.len();
     let writing = bar(by_tile.len() as u64, "storing data tiles", quiet);
+    // One transaction: an import that is interrupted (or fails) leaves the store as it was.
+    let mut writer = store.import_writer().await?;
     for (t, members) in &by_tile {
         let refs: Vec<&BuildingRecord> = members.iter().map(|&i| &records[i]).collect();
         let body = write_overpass_json(&refs);
-        if store.put(t, &body, DataOrigin::Import).await? {
+        if writer.put(t, &body).await? {
             report.changed_data_tiles += 1;
             report.changed_areas.push(affected_area(t));
         }
         writing.inc(1);
     }
+    writer.commit().await?;
     writing.finish_and_clear();
     Ok(report)
 }

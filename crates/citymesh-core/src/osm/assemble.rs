@@ -103,6 +103,48 @@ pub enum SkipReason {
     NoOuterRing,
     /// The footprint has no area, or crosses itself beyond repair.
     DegenerateFootprint,
+    /// A node lies outside longitude -180 to 180 or latitude -85.05 to 85.05 (where Web
+    /// Mercator tiles end), or is not a number.
+    OutOfRange,
+    /// The outline spans more than [`MAX_BUILDING_EXTENT_M`] east-west or north-south: no
+    /// building is that large, but a mistyped or duplicated node far away makes one so.
+    TooLarge,
+}
+
+/// The largest extent (metres, east-west or north-south) a building's outline may span. The
+/// largest buildings on Earth are about 1.1 km long (factory halls, airport terminals); a
+/// larger outline is a data error, and would be stored with every data tile and drawn in
+/// every tile it spans.
+pub const MAX_BUILDING_EXTENT_M: f64 = 2_000.0;
+
+/// The longest tag key or value kept (bytes). OpenStreetMap allows 255 characters (at most
+/// 1,020 bytes of UTF-8); a longer tag is left out of the building, reported as repaired
+/// (`tag_too_long`), so a hostile file cannot make every copy of a building megabytes long.
+pub const MAX_TAG_BYTES: usize = 1_024;
+
+/// Latitude where Web Mercator tiles end.
+const MAX_MERCATOR_LAT: f64 = 85.051_128_78;
+
+/// Why an outline cannot be a building's, if it cannot: a node out of range, or too large.
+fn outline_problem(outers: &[Ring]) -> Option<SkipReason> {
+    let mut b = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
+    for n in outers.iter().flat_map(|r| &r.nodes) {
+        if !(n.lon.is_finite()
+            && n.lat.is_finite()
+            && (-180.0..=180.0).contains(&n.lon)
+            && (-MAX_MERCATOR_LAT..=MAX_MERCATOR_LAT).contains(&n.lat))
+        {
+            return Some(SkipReason::OutOfRange);
+        }
+        b = [b[0].min(n.lon), b[1].min(n.lat), b[2].max(n.lon), b[3].max(n.lat)];
+    }
+    if b[0] > b[2] {
+        return None;
+    }
+    const M_PER_DEG: f64 = 111_320.0;
+    let cos = ((b[1] + b[3]) / 2.0).to_radians().cos();
+    let (east, north) = ((b[2] - b[0]) * M_PER_DEG * cos, (b[3] - b[1]) * M_PER_DEG);
+    (east.max(north) > MAX_BUILDING_EXTENT_M).then_some(SkipReason::TooLarge)
 }
 
 impl SkipReason {
@@ -116,6 +158,8 @@ impl SkipReason {
             SkipReason::TooFewNodes => "too_few_nodes",
             SkipReason::NoOuterRing => "no_outer_ring",
             SkipReason::DegenerateFootprint => "degenerate_footprint",
+            SkipReason::OutOfRange => "out_of_range",
+            SkipReason::TooLarge => "too_large",
         }
     }
 }
@@ -383,6 +427,34 @@ pub fn assemble(mut raw: RawOsm) -> OsmBuildings {
             tags: std::mem::take(&mut way.tags),
         });
     }
+    // Outlines no building has: skipped with where they reach.
+    let mut kept = Vec::with_capacity(out.buildings.len());
+    for mut b in std::mem::take(&mut out.buildings) {
+        match outline_problem(&b.outers) {
+            None => {
+                let tags = b.tags.len();
+                b.tags
+                    .retain(|k, v| k.len() <= MAX_TAG_BYTES && v.len() <= MAX_TAG_BYTES);
+                if b.tags.len() < tags {
+                    out.repaired.push(Repaired {
+                        id: b.id,
+                        what: "tag_too_long",
+                    });
+                }
+                kept.push(b);
+            }
+            Some(reason) => {
+                let r = crate::building::cluster::record_bounds(&b);
+                let bounds = r.iter().all(|v| v.is_finite()).then_some(r);
+                out.skipped.push(Skipped {
+                    id: b.id,
+                    reason,
+                    bounds,
+                });
+            }
+        }
+    }
+    out.buildings = kept;
     out.buildings.sort_by_key(|b| b.id);
     out.skipped.sort_by_key(|s| s.id);
     out.repaired.sort_by_key(|r| r.id);

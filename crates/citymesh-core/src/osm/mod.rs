@@ -13,7 +13,8 @@ mod write;
 mod xml;
 
 pub use assemble::{
-    BuildingRecord, OsmBuildings, OsmId, Repaired, Ring, RingNode, SkipReason, Skipped, assemble,
+    BuildingRecord, MAX_BUILDING_EXTENT_M, MAX_TAG_BYTES, OsmBuildings, OsmId, Repaired, Ring,
+    RingNode, SkipReason, Skipped, assemble,
 };
 pub use raw::{Member, MemberKind, RawOsm, RawRelation, RawWay, Tags};
 pub use write::write_overpass_json;
@@ -78,6 +79,55 @@ pub fn read_raw(bytes: &[u8]) -> Result<RawOsm, OsmError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// One building way over a square near Karlsruhe whose third node is at `third`, with a
+    /// `name` of `name_len` bytes.
+    fn square_way(third: (f64, f64), name_len: usize) -> Vec<u8> {
+        let name = "n".repeat(name_len);
+        format!(
+            r#"{{"elements":[{{"type":"node","id":1,"lat":49.01,"lon":8.4}},
+            {{"type":"node","id":2,"lat":49.01,"lon":8.4002}},
+            {{"type":"node","id":3,"lat":{},"lon":{}}},
+            {{"type":"node","id":4,"lat":49.0102,"lon":8.4}},
+            {{"type":"way","id":77,"nodes":[1,2,3,4,1],"tags":{{"building":"yes","name":"{name}"}}}}]}}"#,
+            third.1, third.0
+        )
+        .into_bytes()
+    }
+
+    #[test]
+    fn outlines_no_building_has_are_skipped_and_long_tags_left_out() {
+        let fine = read_buildings(&square_way((8.4002, 49.0102), 10)).unwrap();
+        assert_eq!(fine.buildings.len(), 1);
+        assert!(fine.repaired.is_empty());
+        // 1.9 km north: still a building; 2.1 km: not.
+        let north = |m: f64| (8.4002, 49.0102 + m / 111_320.0);
+        assert_eq!(read_buildings(&square_way(north(1_900.0), 1)).unwrap().buildings.len(), 1);
+        let far = read_buildings(&square_way(north(2_100.0), 1)).unwrap();
+        assert!(far.buildings.is_empty());
+        assert_eq!(
+            far.skipped.iter().map(|s| (s.id.to_string(), s.reason)).collect::<Vec<_>>(),
+            vec![("way/77".to_owned(), SkipReason::TooLarge)]
+        );
+        assert!(far.skipped[0].bounds.is_some());
+        for third in [(8.4002, 86.0), (181.0, 49.0102)] {
+            let out = read_buildings(&square_way(third, 1)).unwrap();
+            assert_eq!(out.skipped[0].reason, SkipReason::OutOfRange, "{third:?}");
+        }
+        // A tag of 1,024 bytes stays; one byte more and it is left out, reported.
+        let kept = read_buildings(&square_way((8.4002, 49.0102), MAX_TAG_BYTES)).unwrap();
+        assert_eq!(kept.buildings[0].tags["name"].len(), MAX_TAG_BYTES);
+        let long = read_buildings(&square_way((8.4002, 49.0102), MAX_TAG_BYTES + 1)).unwrap();
+        assert!(!long.buildings[0].tags.contains_key("name"));
+        assert_eq!(long.buildings[0].tags["building"], "yes");
+        assert_eq!(
+            long.repaired,
+            vec![Repaired {
+                id: OsmId::Way(77),
+                what: "tag_too_long"
+            }]
+        );
+    }
 
     #[test]
     fn sniff_reads_short_inputs_without_panicking() {

@@ -170,11 +170,47 @@ impl OsmTileStore {
         Ok(previous.as_deref() != Some(hash.as_str()))
     }
 
+    /// A transaction that imports data tiles all at once: nothing is visible (or kept, if the
+    /// import is interrupted) until [`ImportWriter::commit`].
+    pub async fn import_writer(&self) -> Result<ImportWriter, sqlx::Error> {
+        Ok(match &self.db {
+            Database::Sqlite(p) => ImportWriter::Sqlite(p.begin_with("BEGIN IMMEDIATE").await?),
+            Database::Postgres(p) => ImportWriter::Postgres(p.begin().await?),
+        })
+    }
+
     /// Number of stored data tiles.
     pub async fn count(&self) -> Result<i64, sqlx::Error> {
         match &self.db {
             Database::Sqlite(p) => sqlite::count(p).await,
             Database::Postgres(p) => postgres::count(p).await,
+        }
+    }
+}
+
+/// Data tiles written in one transaction (see [`OsmTileStore::import_writer`]).
+pub enum ImportWriter {
+    Sqlite(sqlx::Transaction<'static, sqlx::Sqlite>),
+    Postgres(sqlx::Transaction<'static, sqlx::Postgres>),
+}
+
+impl ImportWriter {
+    /// Stores an imported data tile; answers whether its content changed.
+    pub async fn put(&mut self, t: &TileCoord, body: &[u8]) -> Result<bool, sqlx::Error> {
+        let hash = content_hash(body);
+        let origin = DataOrigin::Import;
+        let previous = match self {
+            Self::Sqlite(tx) => sqlite::put_in(tx, t, body, &hash, origin, now_secs()).await?,
+            Self::Postgres(tx) => postgres::put_in(tx, t, body, &hash, origin, now_secs()).await?,
+        };
+        Ok(previous.as_deref() != Some(hash.as_str()))
+    }
+
+    /// Makes every tile put visible at once.
+    pub async fn commit(self) -> Result<(), sqlx::Error> {
+        match self {
+            Self::Sqlite(tx) => tx.commit().await,
+            Self::Postgres(tx) => tx.commit().await,
         }
     }
 }

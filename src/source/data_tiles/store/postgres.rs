@@ -70,7 +70,7 @@ pub(super) async fn get(
     }))
 }
 
-/// Stores the row; answers the hash it replaced.
+/// Stores the row in its own transaction; answers the hash it replaced.
 pub(super) async fn put(
     pool: &PgPool,
     t: &TileCoord,
@@ -80,6 +80,20 @@ pub(super) async fn put(
     now_secs: i64,
 ) -> Result<Option<String>, sqlx::Error> {
     let mut tx = pool.begin().await?;
+    let previous = put_in(&mut tx, t, body, hash, origin, now_secs).await?;
+    tx.commit().await?;
+    Ok(previous)
+}
+
+/// Stores the row in the caller's transaction; answers the hash it replaced.
+pub(super) async fn put_in(
+    tx: &mut sqlx::PgConnection,
+    t: &TileCoord,
+    body: &[u8],
+    hash: &str,
+    origin: DataOrigin,
+    now_secs: i64,
+) -> Result<Option<String>, sqlx::Error> {
     let previous: Option<String> = sqlx::query(
         "SELECT hash FROM osm_data_tiles WHERE z = $1 AND x = $2 AND y = $3 FOR UPDATE",
     )
@@ -106,7 +120,6 @@ pub(super) async fn put(
     .bind(now_secs.saturating_mul(1000))
     .execute(&mut *tx)
     .await?;
-    tx.commit().await?;
     Ok(previous)
 }
 

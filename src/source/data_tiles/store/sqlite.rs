@@ -66,7 +66,7 @@ pub(super) async fn get(
     }))
 }
 
-/// Stores the row; answers the hash it replaced.
+/// Stores the row in its own transaction; answers the hash it replaced.
 pub(super) async fn put(
     pool: &SqlitePool,
     t: &TileCoord,
@@ -76,6 +76,20 @@ pub(super) async fn put(
     now_secs: i64,
 ) -> Result<Option<String>, sqlx::Error> {
     let mut tx = pool.begin_with("BEGIN IMMEDIATE").await?;
+    let previous = put_in(&mut tx, t, body, hash, origin, now_secs).await?;
+    tx.commit().await?;
+    Ok(previous)
+}
+
+/// Stores the row in the caller's transaction; answers the hash it replaced.
+pub(super) async fn put_in(
+    tx: &mut sqlx::SqliteConnection,
+    t: &TileCoord,
+    body: &[u8],
+    hash: &str,
+    origin: DataOrigin,
+    now_secs: i64,
+) -> Result<Option<String>, sqlx::Error> {
     let previous: Option<String> =
         sqlx::query("SELECT hash FROM osm_data_tiles WHERE z = ? AND x = ? AND y = ?")
             .bind(i64::from(t.z))
@@ -99,7 +113,6 @@ pub(super) async fn put(
     .bind(now_secs.saturating_mul(1000))
     .execute(&mut *tx)
     .await?;
-    tx.commit().await?;
     Ok(previous)
 }
 
