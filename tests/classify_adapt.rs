@@ -408,7 +408,9 @@ async fn one_adaptation_runs_at_a_time_and_cancel_and_shutdown_stop_it() {
     let cancelled = delete(id.clone()).await;
     assert_eq!(cancelled.status, StatusCode::OK, "{}", cancelled.text());
     assert_eq!(cancelled.json()["state"], "cancelled");
-    let status = common::get(&app, &format!("/classify/adapt/{id}")).await.json();
+    let status = common::get(&app, &format!("/classify/adapt/{id}"))
+        .await
+        .json();
     assert_eq!(status["state"], "cancelled", "{status}");
     // Cancelling it again: it has ended without a head.
     assert_eq!(delete(id).await.status, StatusCode::CONFLICT);
@@ -417,8 +419,16 @@ async fn one_adaptation_runs_at_a_time_and_cancel_and_shutdown_stop_it() {
     assert_eq!(next.status, StatusCode::ACCEPTED, "{}", next.text());
     let next = next.json()["id"].as_str().unwrap().to_owned();
     state.roofs.shut_down(Duration::from_secs(120)).await;
-    let status = common::get(&app, &format!("/classify/adapt/{next}")).await.json();
+    let status = common::get(&app, &format!("/classify/adapt/{next}"))
+        .await
+        .json();
     assert_eq!(status["state"], "failed", "{status}");
-    assert!(status["error"].as_str().unwrap().contains("shutdown"), "{status}");
-    assert_eq!(state.roofs.adaptations.running("styled").await.unwrap(), None);
+    assert!(
+        status["error"].as_str().unwrap().contains("shutdown"),
+        "{status}"
+    );
+    assert_eq!(
+        state.roofs.adaptations.running("styled").await.unwrap(),
+        None
+    );
 }

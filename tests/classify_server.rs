@@ -822,7 +822,10 @@ async fn post_classify_gathers_its_buildings_within_the_request_timeout() {
     }
     // The adaptation that timed out is recorded as failed, so the next one may start.
     let imagery_id = state.roofs.imagery_id.clone();
-    assert_eq!(state.roofs.adaptations.running(&imagery_id).await.unwrap(), None);
+    assert_eq!(
+        state.roofs.adaptations.running(&imagery_id).await.unwrap(),
+        None
+    );
 }
 
 /// Round 3, item 2: what classification batches keep in the store is bounded. One client past
@@ -851,7 +854,8 @@ async fn classification_batches_stay_within_their_budget_and_expire() {
     let first = common::post_json(&app, "/classify", serde_json::json!({ "bbox": AREA })).await;
     assert_eq!(first.status, StatusCode::ACCEPTED, "{}", first.text());
     let first = first.json();
-    let links = first["counts"]["queued"].as_u64().unwrap() + first["counts"]["already"].as_u64().unwrap();
+    let links =
+        first["counts"]["queued"].as_u64().unwrap() + first["counts"]["already"].as_u64().unwrap();
     let bytes = batch_bytes(links as usize);
     assert!(bytes > 4096, "{bytes} bytes: too small an area to tell");
     // The same box again and again: as many as fit in half a MiB, then 429.
@@ -860,11 +864,21 @@ async fn classification_batches_stay_within_their_budget_and_expire() {
     let mut ids = vec![first["id"].as_str().unwrap().to_owned()];
     for i in 1..fit {
         let again = common::post_json(&app, "/classify", serde_json::json!({ "bbox": AREA })).await;
-        assert_eq!(again.status, StatusCode::ACCEPTED, "batch {i}: {}", again.text());
+        assert_eq!(
+            again.status,
+            StatusCode::ACCEPTED,
+            "batch {i}: {}",
+            again.text()
+        );
         ids.push(again.json()["id"].as_str().unwrap().to_owned());
     }
     let over = common::post_json(&app, "/classify", serde_json::json!({ "bbox": AREA })).await;
-    assert_eq!(over.status, StatusCode::TOO_MANY_REQUESTS, "{}", over.text());
+    assert_eq!(
+        over.status,
+        StatusCode::TOO_MANY_REQUESTS,
+        "{}",
+        over.text()
+    );
     assert_eq!(over.json()["error"], "too_many_batches");
     assert!(!over.header("retry-after").is_empty());
     let (all, mine) = state.roofs.batches.usage("local").await.unwrap();
@@ -898,7 +912,10 @@ async fn classification_batches_stay_within_their_budget_and_expire() {
     let gone = common::get(&app, &format!("/classify/{last}")).await;
     assert_eq!(gone.status, StatusCode::NOT_FOUND, "{}", gone.text());
     let text = gone.text();
-    assert!(text.contains("expired") || text.contains("finished batches are kept"), "{text}");
+    assert!(
+        text.contains("expired") || text.contains("finished batches are kept"),
+        "{text}"
+    );
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -222,7 +222,10 @@ fn a_wrong_export_says_what_to_fix() {
     let err = String::from_utf8_lossy(&out.stderr);
     let named = format!("writing {}", blocked.path().join("content").display());
     assert!(err.contains(&named), "{err}");
-    assert!(!err.contains("backtrace") && !err.contains("Caused by"), "{err}");
+    assert!(
+        !err.contains("backtrace") && !err.contains("Caused by"),
+        "{err}"
+    );
 }
 
 /// An S3 API (moto's server, from the test venv) on a free port of 127.0.0.1, killed on drop.

@@ -474,7 +474,12 @@ async fn tree_measurements_are_shared_kept_and_never_list_refused_uris() {
     let db = tempfile::tempdir().unwrap();
     let small = citymesh::app(state_with(&db, &["--max-bbox-km2", "1"]).await.unwrap());
     let refused = get(&small, "/3dtiles/tileset.json").await;
-    assert_eq!(refused.status, StatusCode::BAD_REQUEST, "{}", refused.text());
+    assert_eq!(
+        refused.status,
+        StatusCode::BAD_REQUEST,
+        "{}",
+        refused.text()
+    );
     assert_eq!(refused.json()["error"], "bbox_too_large");
     assert!(refused.text().contains("bbox="), "{}", refused.text());
 

@@ -508,7 +508,11 @@ async fn vendor_files_stay_inside_their_package_and_a_416_says_why() {
     let assets = db.path().join("assets");
     let three = assets.join("three");
     std::fs::create_dir_all(&three).unwrap();
-    std::fs::write(three.join("three.module.js"), "export const REVISION = '1';").unwrap();
+    std::fs::write(
+        three.join("three.module.js"),
+        "export const REVISION = '1';",
+    )
+    .unwrap();
     let secret = db.path().join("secret.txt");
     std::fs::write(&secret, "not for clients").unwrap();
     std::os::unix::fs::symlink(&secret, three.join("leak.js")).unwrap();
@@ -517,10 +521,17 @@ async fn vendor_files_stay_inside_their_package_and_a_416_says_why() {
     let ok = common::get(&app, "/vendor/three/three.module.js").await;
     assert_eq!(ok.status, StatusCode::OK);
     assert_eq!(ok.text(), "export const REVISION = '1';");
-    for path in ["/vendor/three/leak.js", "/vendor/three/up/secret.txt", "/vendor/three/up/c.sqlite"] {
-        let (status, _, body) =
-            send(&app, Request::get(path).body(Body::empty()).unwrap()).await;
-        assert_eq!((status, body["error"].as_str()), (StatusCode::NOT_FOUND, Some("not_found")), "{path}");
+    for path in [
+        "/vendor/three/leak.js",
+        "/vendor/three/up/secret.txt",
+        "/vendor/three/up/c.sqlite",
+    ] {
+        let (status, _, body) = send(&app, Request::get(path).body(Body::empty()).unwrap()).await;
+        assert_eq!(
+            (status, body["error"].as_str()),
+            (StatusCode::NOT_FOUND, Some("not_found")),
+            "{path}"
+        );
     }
     let (status, headers, body) = send(
         &app,
@@ -1131,9 +1142,15 @@ fn keep_pinging(mut pings: h2::PingPong) -> tokio::task::JoinHandle<u64> {
 }
 
 /// `GET path` over HTTP/2: the status and the body.
-async fn h2_get(send: h2::client::SendRequest<bytes::Bytes>, addr: &str, path: &str) -> (u16, String) {
+async fn h2_get(
+    send: h2::client::SendRequest<bytes::Bytes>,
+    addr: &str,
+    path: &str,
+) -> (u16, String) {
     let mut send = send.ready().await.unwrap();
-    let request = Request::get(format!("http://{addr}{path}")).body(()).unwrap();
+    let request = Request::get(format!("http://{addr}{path}"))
+        .body(())
+        .unwrap();
     let (answer, _) = send.send_request(request, true).unwrap();
     let answer = answer.await.unwrap();
     let status = answer.status().as_u16();

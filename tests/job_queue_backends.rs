@@ -324,10 +324,7 @@ async fn adaptations(store: AdaptationStore) -> Vec<serde_json::Value> {
     assert_eq!(cancelled.state, "cancelled");
     seen.push(serde_json::to_value(cancelled).unwrap());
     // An ended one is left as it is.
-    assert_eq!(
-        store.cancel(&id).await.unwrap().as_deref(),
-        Some("too_few")
-    );
+    assert_eq!(store.cancel(&id).await.unwrap().as_deref(), Some("too_few"));
     assert_eq!(store.cancel(&fourth).await.unwrap(), None);
     // A restart fails what was left running with a lease that ran out, on either database.
     store

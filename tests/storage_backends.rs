@@ -414,7 +414,11 @@ async fn misses_waiting_on_upstream_hold_no_database_connection() {
             let app = app.clone();
             tokio::spawn(async move {
                 let uri = format!("/tiles/16/{}/22493.glb", 34_290 + (i % 4));
-                let uri = if i >= 4 { format!("{uri}?encoding=meshopt") } else { uri };
+                let uri = if i >= 4 {
+                    format!("{uri}?encoding=meshopt")
+                } else {
+                    uri
+                };
                 app.oneshot(Request::get(uri).body(Body::empty()).unwrap())
                     .await
                     .unwrap()

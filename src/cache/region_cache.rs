@@ -200,11 +200,7 @@ mod tests {
         };
         // The first request gives up before the measurement ends.
         let first = cache.get_or_measure(key(), measure(calls.clone()), &shutdown, LONG, stopped);
-        assert!(
-            tokio::time::timeout(Duration::ZERO, first)
-                .await
-                .is_err()
-        );
+        assert!(tokio::time::timeout(Duration::ZERO, first).await.is_err());
         // The second waits for the same measurement; it ends once.
         let second = cache.get_or_measure(
             key(),
@@ -237,16 +233,19 @@ mod tests {
         let (seen_tx, seen_rx) = tokio::sync::oneshot::channel::<bool>();
         let waiting = cache.get_or_measure(
             key(),
-            |stop: CancellationToken| async move {
-                // Work that only ends when told to stop, as the measuring loop does.
+            |stop: CancellationToken| {
+                // Work under way that only ends when told to stop, as the measuring loop does
+                // (the future waiting for it is dropped when the measurement stops).
                 let blocking = tokio::task::spawn_blocking(move || {
                     while !stop.is_cancelled() {
                         std::thread::yield_now();
                     }
                     let _ = seen_tx.send(true);
                 });
-                let _ = blocking.await;
-                Err("never".to_owned())
+                async move {
+                    let _ = blocking.await;
+                    Err("never".to_owned())
+                }
             },
             &shutdown,
             LONG,
@@ -258,7 +257,13 @@ mod tests {
         // Nothing was kept: the next request measures again.
         assert!(
             cache
-                .get_or_measure(key(), |_| async { Ok(regions()) }, &CancellationToken::new(), LONG, stopped)
+                .get_or_measure(
+                    key(),
+                    |_| async { Ok(regions()) },
+                    &CancellationToken::new(),
+                    LONG,
+                    stopped
+                )
                 .await
                 .is_ok()
         );

@@ -90,8 +90,14 @@ pub async fn run_osm(args: &AdaptRoofsArgs) -> anyhow::Result<bool> {
     };
     let started = std::time::Instant::now();
     let never = tokio_util::sync::CancellationToken::new();
-    let outcome =
-        fit_on_imagery(&classifier, &imagery, &examples, &Progress::Bar(&bar), &never).await;
+    let outcome = fit_on_imagery(
+        &classifier,
+        &imagery,
+        &examples,
+        &Progress::Bar(&bar),
+        &never,
+    )
+    .await;
     bar.finish_and_clear();
     // The server uses the stored head only when it beats the shipped one, as it would have
     // fitted it itself; the file is written either way.

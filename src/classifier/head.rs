@@ -5,8 +5,8 @@
 
 use super::onnx::{Embedded, OnnxClassifier};
 use super::{ClassifierError, Prediction, RoofClassifier};
-use citymesh_core::learn::cross_validation::{argmax, fit_examples, predict_example};
 use citymesh_core::learn::cross_validation::cross_validate_with;
+use citymesh_core::learn::cross_validation::{argmax, fit_examples, predict_example};
 use citymesh_core::learn::{CrossValidation, Example, FitOptions, SoftmaxRegression};
 use citymesh_core::roof_image::{Crop, RoofClass};
 use serde::{Deserialize, Serialize};

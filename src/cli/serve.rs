@@ -99,12 +99,20 @@ pub struct ServeArgs {
 
     /// Share of --classify-store-mb one client (by IP address) may hold in live batches,
     /// percent; past it that client gets 429 with Retry-After.
-    #[arg(long, env = "CITYMESH_CLASSIFY_CLIENT_SHARE_PERCENT", default_value_t = 25.0)]
+    #[arg(
+        long,
+        env = "CITYMESH_CLASSIFY_CLIENT_SHARE_PERCENT",
+        default_value_t = 25.0
+    )]
     pub classify_client_share_percent: f64,
 
     /// Seconds a finished classification batch is kept after its last job ended; then
     /// `GET /classify/{id}` answers 404 (its predictions stay).
-    #[arg(long, env = "CITYMESH_CLASSIFY_BATCH_TTL_S", default_value_t = 86_400.0)]
+    #[arg(
+        long,
+        env = "CITYMESH_CLASSIFY_BATCH_TTL_S",
+        default_value_t = 86_400.0
+    )]
     pub classify_batch_ttl_s: f64,
 
     /// Put an adapted roof head in use even when its cross-validated accuracy does not beat the

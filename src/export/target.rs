@@ -94,8 +94,9 @@ impl ExportTarget {
         match self {
             ExportTarget::Directory(dir) => {
                 let path = dir.join(key);
-                write_whole(&path, &bytes)
-                    .map_err(|e| anyhow::anyhow!("--out {}: writing {}: {e}", dir.display(), path.display()))
+                write_whole(&path, &bytes).map_err(|e| {
+                    anyhow::anyhow!("--out {}: writing {}: {e}", dir.display(), path.display())
+                })
             }
             ExportTarget::Objects { store, prefix, url } => {
                 store

@@ -212,7 +212,8 @@ impl BatchBudget {
     }
 
     async fn sweep(&self) -> Result<u64, JobError> {
-        let cutoff = now_ms().saturating_sub(i64::try_from(self.limits.ttl.as_millis()).unwrap_or(i64::MAX));
+        let cutoff =
+            now_ms().saturating_sub(i64::try_from(self.limits.ttl.as_millis()).unwrap_or(i64::MAX));
         let n = self.expire(cutoff).await?;
         if let Ok(mut last) = self.last_sweep.lock() {
             *last = Some(Instant::now());

@@ -229,7 +229,10 @@ impl RoofJobs {
     pub async fn shut_down(&self, grace: std::time::Duration) {
         self.stopping.cancel();
         self.tasks.close();
-        if tokio::time::timeout(grace, self.tasks.wait()).await.is_err() {
+        if tokio::time::timeout(grace, self.tasks.wait())
+            .await
+            .is_err()
+        {
             tracing::warn!("adaptations still stopping after {} s", grace.as_secs_f64());
         }
     }

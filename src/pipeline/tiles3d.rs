@@ -3,7 +3,6 @@
 
 use super::limits::{generation_slot, within_timeout};
 use crate::cache::Stopped;
-use tokio_util::sync::CancellationToken;
 use crate::error::AppError;
 use crate::state::AppState;
 use bytes::Bytes;
@@ -13,6 +12,7 @@ use citymesh_core::geo::GeoBbox;
 use citymesh_core::scene::RoofChoice;
 use citymesh_core::tiles3d::{ImplicitLayout, TileRegions, measure_regions, root_subtree};
 use std::sync::Arc;
+use tokio_util::sync::CancellationToken;
 
 /// The binary subtree at the root of the tree over `root` (the tree's only one): every tile
 /// exists, every leaf has content (ground where it holds no building), and each tile's region
@@ -32,7 +32,10 @@ pub async fn tile_regions(
     pitched: bool,
 ) -> Result<Arc<TileRegions>, AppError> {
     let key = (root.to_string(), pitched);
-    let max_work = state.limits.request_timeout.saturating_mul(MEASURE_TIMEOUTS);
+    let max_work = state
+        .limits
+        .request_timeout
+        .saturating_mul(MEASURE_TIMEOUTS);
     let measure = |stop: CancellationToken| {
         let state = state.clone();
         async move {
@@ -69,10 +72,13 @@ pub async fn tile_regions(
     // The request waits at most its timeout; the measurement goes on (and is kept) without it.
     within_timeout(
         state,
-        state
-            .tiles
-            .regions
-            .get_or_measure(key, measure, &state.stopping, max_work, measure_stopped),
+        state.tiles.regions.get_or_measure(
+            key,
+            measure,
+            &state.stopping,
+            max_work,
+            measure_stopped,
+        ),
     )
     .await
 }

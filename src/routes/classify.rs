@@ -6,16 +6,16 @@
 
 use super::params::parse_bbox;
 use crate::error::{AppError, ErrorBody};
+use crate::jobs::batch_budget::{Refusal, batch_bytes};
 use crate::jobs::{
     BatchCounts, BatchProgress, RoofJobQueue, Selection, ring_bounds, select_buildings,
 };
-use crate::jobs::batch_budget::{Refusal, batch_bytes};
 use crate::pipeline::within_timeout;
 use crate::server::ClientAddr;
 use crate::state::AppState;
+use axum::Extension;
 use axum::Json;
 use axum::extract::rejection::{JsonRejection, PathRejection, QueryRejection};
-use axum::Extension;
 use axum::extract::{Path, Query, State};
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
@@ -253,7 +253,9 @@ async fn live_batch(state: &AppState, id: &str) -> Result<BatchProgress, AppErro
         Some(p) if !p.cancelled => Ok(p),
         Some(_) if state.roofs.batches.is_expired(id).await? => Err(AppError::not_found(
             "no_such_batch",
-            format!("batch {id} expired: finished batches are kept {kept} s after their last job ended (its predictions stay: GET /classify/predictions)"),
+            format!(
+                "batch {id} expired: finished batches are kept {kept} s after their last job ended (its predictions stay: GET /classify/predictions)"
+            ),
         )),
         Some(_) => Err(AppError::not_found(
             "no_such_batch",
@@ -261,7 +263,9 @@ async fn live_batch(state: &AppState, id: &str) -> Result<BatchProgress, AppErro
         )),
         None => Err(AppError::not_found(
             "no_such_batch",
-            format!("no batch {id} (finished batches are kept {kept} s after their last job ended)"),
+            format!(
+                "no batch {id} (finished batches are kept {kept} s after their last job ended)"
+            ),
         )),
     }
 }

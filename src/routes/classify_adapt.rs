@@ -102,7 +102,14 @@ pub async fn post_adapt(
     let lease = &roofs.adapt_policy.lease;
     if let Some(running) = roofs
         .adaptations
-        .start(&id, &bbox.to_string(), &roofs.imagery_id, &model_id, [0; 3], lease)
+        .start(
+            &id,
+            &bbox.to_string(),
+            &roofs.imagery_id,
+            &model_id,
+            [0; 3],
+            lease,
+        )
         .await?
     {
         return Err(AppError::Document {
@@ -210,11 +217,10 @@ pub async fn delete_adapt(
 ) -> Result<Json<AdaptationEnded>, AppError> {
     let id = adaptation_id(path)?;
     let roofs = &state.roofs;
-    let before = roofs
-        .adaptations
-        .cancel(&id)
-        .await?
-        .ok_or_else(|| AppError::not_found("no_such_adaptation", format!("no adaptation {id}")))?;
+    let before =
+        roofs.adaptations.cancel(&id).await?.ok_or_else(|| {
+            AppError::not_found("no_such_adaptation", format!("no adaptation {id}"))
+        })?;
     let ended = match before.as_str() {
         "running" => {
             roofs.stop_adaptation(&id);

@@ -15,7 +15,6 @@ mod headers;
 mod health;
 mod metrics;
 mod pages;
-mod vendor;
 mod params;
 mod procedural;
 mod request_body;
@@ -26,6 +25,7 @@ mod scene_upload;
 mod schemas;
 mod tiles;
 mod tiles3d;
+mod vendor;
 
 use crate::error::{AppError, ErrorBody};
 use crate::state::AppState;
@@ -102,7 +102,10 @@ fn api_router() -> OpenApiRouter<AppState> {
         .routes(routes!(classify::predictions))
         .routes(routes!(classify::get_batch, classify::delete_batch))
         .routes(routes!(classify_adapt::post_adapt))
-        .routes(routes!(classify_adapt::get_adapt, classify_adapt::delete_adapt))
+        .routes(routes!(
+            classify_adapt::get_adapt,
+            classify_adapt::delete_adapt
+        ))
 }
 
 /// Renames the suffixed paths to the form clients call.
@@ -153,7 +156,10 @@ pub fn app(state: AppState) -> Router {
     let (router, doc) = api_router().split_for_parts();
     // Each package's files, never what a link inside it points to elsewhere.
     let package = |dir: std::path::PathBuf| {
-        let guard = axum::middleware::from_fn_with_state(std::sync::Arc::new(dir.clone()), vendor::contained);
+        let guard = axum::middleware::from_fn_with_state(
+            std::sync::Arc::new(dir.clone()),
+            vendor::contained,
+        );
         tower::Layer::layer(&guard, ServeDir::new(dir))
     };
     router

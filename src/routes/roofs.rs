@@ -114,16 +114,17 @@ pub async fn cached_tile(
             key,
             || async { Ok::<_, AppError>(plan.buildings) },
             |buildings| async {
-            let g = generate(
-                state,
-                area,
-                Buildings::Loaded(buildings),
-                Some(plan.choice),
-                MeshOptions::new(state, key.encoding),
-            )
-            .await?;
-            Ok::<_, AppError>((g.glb, g.stats))
-        })
+                let g = generate(
+                    state,
+                    area,
+                    Buildings::Loaded(buildings),
+                    Some(plan.choice),
+                    MeshOptions::new(state, key.encoding),
+                )
+                .await?;
+                Ok::<_, AppError>((g.glb, g.stats))
+            },
+        )
         .await?;
     let mut response = cached_response(request_headers, cached, level, cache_control);
     add_roofs_header(&mut response, &plan.chosen);

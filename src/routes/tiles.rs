@@ -77,16 +77,17 @@ pub async fn tile_glb(
                     key,
                     || gather(&state, key.tile.area()),
                     |buildings| async {
-                    let g = generate(
-                        &state,
-                        key.tile.area(),
-                        Buildings::Loaded(buildings),
-                        None,
-                        MeshOptions::new(&state, encoding),
-                    )
-                    .await?;
-                    Ok::<_, AppError>((g.glb, g.stats))
-                })
+                        let g = generate(
+                            &state,
+                            key.tile.area(),
+                            Buildings::Loaded(buildings),
+                            None,
+                            MeshOptions::new(&state, encoding),
+                        )
+                        .await?;
+                        Ok::<_, AppError>((g.glb, g.stats))
+                    },
+                )
                 .await?;
             Ok(cached_response(
                 request_headers,

@@ -3,8 +3,8 @@
 //! on SIGINT or SIGTERM.
 
 mod connections;
-mod streams;
 mod parse_errors;
+mod streams;
 
 pub use connections::ConnectionLimits;
 pub use streams::ClientAddr;

@@ -136,13 +136,18 @@ const SNIFF_BYTES: u64 = 64;
 /// after at most the cap.
 pub fn read_osm_file(path: &Path) -> Result<Vec<u8>, OsmFileError> {
     let name = || path.display().to_string();
-    let io = |source| OsmFileError::Io { path: name(), source };
+    let io = |source| OsmFileError::Io {
+        path: name(),
+        source,
+    };
     let file = std::fs::File::open(path).map_err(io)?;
     let size = file.metadata().map_err(io)?.len();
     let mut file = std::io::BufReader::new(file);
     let gzip = file.fill_buf().map_err(io)?.starts_with(&[0x1f, 0x8b]);
     let (mut reader, cap): (Box<dyn Read>, u64) = if gzip {
-        let cap = size.saturating_mul(MAX_GZIP_RATIO).clamp(1 << 20, MAX_OSM_BYTES);
+        let cap = size
+            .saturating_mul(MAX_GZIP_RATIO)
+            .clamp(1 << 20, MAX_OSM_BYTES);
         (Box::new(flate2::bufread::GzDecoder::new(file)), cap)
     } else {
         (Box::new(file), MAX_OSM_BYTES)
@@ -159,14 +164,22 @@ pub fn read_osm_file(path: &Path) -> Result<Vec<u8>, OsmFileError> {
         });
     }
     if !gzip && size > MAX_OSM_BYTES {
-        return Err(OsmFileError::TooLarge { path: name(), cap: MAX_OSM_BYTES, gzip });
+        return Err(OsmFileError::TooLarge {
+            path: name(),
+            cap: MAX_OSM_BYTES,
+            gzip,
+        });
     }
     reader
         .take(cap.saturating_add(1).saturating_sub(out.len() as u64))
         .read_to_end(&mut out)
         .map_err(io)?;
     if out.len() as u64 > cap {
-        return Err(OsmFileError::TooLarge { path: name(), cap, gzip });
+        return Err(OsmFileError::TooLarge {
+            path: name(),
+            cap,
+            gzip,
+        });
     }
     Ok(out)
 }
@@ -242,16 +255,31 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         // A sparse file of 2 GiB (zeros): refused on its first bytes.
         let sparse = dir.path().join("sparse.osm");
-        std::fs::File::create(&sparse).unwrap().set_len(2 << 30).unwrap();
+        std::fs::File::create(&sparse)
+            .unwrap()
+            .set_len(2 << 30)
+            .unwrap();
         let e = read_osm_file(&sparse).unwrap_err();
-        assert!(matches!(e, OsmFileError::Format { source: OsmError::UnknownFormat, .. }), "{e}");
+        assert!(
+            matches!(
+                e,
+                OsmFileError::Format {
+                    source: OsmError::UnknownFormat,
+                    ..
+                }
+            ),
+            "{e}"
+        );
         assert!(e.to_string().contains("sparse.osm"), "{e}");
         // Gzipped zeros: refused on their first gunzipped bytes.
         let zeros = dir.path().join("zeros.osm.gz");
         std::fs::write(&zeros, gzip(&vec![0u8; 64 << 20])).unwrap();
         assert!(matches!(
             read_osm_file(&zeros).unwrap_err(),
-            OsmFileError::Format { source: OsmError::UnknownFormat, .. }
+            OsmFileError::Format {
+                source: OsmError::UnknownFormat,
+                ..
+            }
         ));
         // XML that grows 1,000-fold: refused at the cap, 100 times the file (at least 1 MiB).
         let mut xml = b"<osm>".to_vec();

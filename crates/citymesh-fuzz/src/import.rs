@@ -46,7 +46,10 @@ pub fn import(bytes: &[u8]) {
         let stored = OsmTileStore::new(db.clone()).count().await.unwrap_or(0);
         match result {
             Ok(report) => {
-                assert_eq!(stored as usize, report.data_tiles, "a report that is not the store");
+                assert_eq!(
+                    stored as usize, report.data_tiles,
+                    "a report that is not the store"
+                );
                 assert!(
                     report.data_tiles <= report.buildings.max(1) * MAX_TILES_PER_BUILDING,
                     "{} buildings wrote {} data tiles",

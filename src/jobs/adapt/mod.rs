@@ -136,4 +136,3 @@ pub fn class_counts(examples: &[AdaptExample]) -> [usize; 3] {
     examples.iter().for_each(|e| counts[e.class.index()] += 1);
     counts
 }
-

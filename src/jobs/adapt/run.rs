@@ -47,7 +47,12 @@ pub async fn run_adaptation(
 ) {
     let store = jobs.adaptations.clone();
     let policy = jobs.adapt_policy.clone();
-    let keeper = keep_lease(store.clone(), id.clone(), policy.lease.clone(), stop.clone());
+    let keeper = keep_lease(
+        store.clone(),
+        id.clone(),
+        policy.lease.clone(),
+        stop.clone(),
+    );
     let outcome = tokio::select! {
         outcome = adapt(&jobs, &store, &id, examples, &stop) => outcome,
         () = tokio::time::sleep(policy.max_run) => Err(AdaptFailure::Failed(format!(
@@ -215,10 +220,11 @@ pub async fn fit_on_imagery(
         .map_err(|e| failed(&e))?;
     let base = base.clone();
     let stop = stop.clone();
-    let fitted =
-        tokio::task::spawn_blocking(move || fit_head(&base, &crops, &classes, &|| stop.is_cancelled()))
-        .await
-        .map_err(|e| failed(&e))?;
+    let fitted = tokio::task::spawn_blocking(move || {
+        fit_head(&base, &crops, &classes, &|| stop.is_cancelled())
+    })
+    .await
+    .map_err(|e| failed(&e))?;
     match fitted {
         Ok(head) => Ok(head),
         Err(e @ AdaptError::TooFew { .. }) => Err(AdaptFailure::TooFew(format!(
@@ -228,4 +234,3 @@ pub async fn fit_on_imagery(
         Err(e) => Err(failed(&e)),
     }
 }
-

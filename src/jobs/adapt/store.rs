@@ -138,7 +138,10 @@ impl AdaptationStore {
                    WHERE id = $4 AND state = $5";
         let (to, why) = match before.as_str() {
             "running" => ("cancelled", "cancelled by a client"),
-            "done" => ("withdrawn", "withdrawn by a client: its head is no longer in use"),
+            "done" => (
+                "withdrawn",
+                "withdrawn by a client: its head is no longer in use",
+            ),
             _ => return Ok(Some(before)),
         };
         let changed = on_pool!(&self.db, pool => sqlx::query(sql)
@@ -178,7 +181,12 @@ impl AdaptationStore {
         }
     }
 
-    pub(super) async fn progress(&self, id: &str, cropped: usize, failed: usize) -> Result<(), JobError> {
+    pub(super) async fn progress(
+        &self,
+        id: &str,
+        cropped: usize,
+        failed: usize,
+    ) -> Result<(), JobError> {
         let sql = "UPDATE roof_adaptations SET cropped = $1, crop_failed = $2, updated_at = $3 \
                    WHERE id = $4";
         on_pool!(&self.db, pool => sqlx::query(sql)
@@ -318,4 +326,3 @@ where
         error: r.get(10),
     }
 }
-

@@ -67,7 +67,11 @@ pub async fn import_files(
         })
         .await??;
         report.skipped += osm.skipped.len();
-        report.skips.extend(osm.skipped.iter().map(|s| (s.id.to_string(), s.reason.name())));
+        report.skips.extend(
+            osm.skipped
+                .iter()
+                .map(|s| (s.id.to_string(), s.reason.name())),
+        );
         for b in osm.buildings {
             if seen.insert(b.id) {
                 records.push(b);

@@ -136,7 +136,12 @@ fn outline_problem(outers: &[Ring]) -> Option<SkipReason> {
         {
             return Some(SkipReason::OutOfRange);
         }
-        b = [b[0].min(n.lon), b[1].min(n.lat), b[2].max(n.lon), b[3].max(n.lat)];
+        b = [
+            b[0].min(n.lon),
+            b[1].min(n.lat),
+            b[2].max(n.lon),
+            b[3].max(n.lat),
+        ];
     }
     if b[0] > b[2] {
         return None;

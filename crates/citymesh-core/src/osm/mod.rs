@@ -102,11 +102,20 @@ mod tests {
         assert!(fine.repaired.is_empty());
         // 1.9 km north: still a building; 2.1 km: not.
         let north = |m: f64| (8.4002, 49.0102 + m / 111_320.0);
-        assert_eq!(read_buildings(&square_way(north(1_900.0), 1)).unwrap().buildings.len(), 1);
+        assert_eq!(
+            read_buildings(&square_way(north(1_900.0), 1))
+                .unwrap()
+                .buildings
+                .len(),
+            1
+        );
         let far = read_buildings(&square_way(north(2_100.0), 1)).unwrap();
         assert!(far.buildings.is_empty());
         assert_eq!(
-            far.skipped.iter().map(|s| (s.id.to_string(), s.reason)).collect::<Vec<_>>(),
+            far.skipped
+                .iter()
+                .map(|s| (s.id.to_string(), s.reason))
+                .collect::<Vec<_>>(),
             vec![("way/77".to_owned(), SkipReason::TooLarge)]
         );
         assert!(far.skipped[0].bounds.is_some());
