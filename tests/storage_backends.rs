@@ -376,7 +376,11 @@ async fn misses_waiting_on_upstream_hold_no_database_connection() {
     }
     async fn answer(axum::extract::State(stub): axum::extract::State<Stub>) -> &'static str {
         stub.asked.send_modify(|n| *n += 1);
-        let _ = stub.release.acquire().await.map(|p| p.forget());
+        let _ = stub
+            .release
+            .acquire()
+            .await
+            .map(tokio::sync::SemaphorePermit::forget);
         r#"{"elements": []}"#
     }
     let (asked, mut asked_rx) = tokio::sync::watch::channel(0usize);

@@ -102,7 +102,10 @@ where
         M: FnOnce(CancellationToken) -> F,
         F: Future<Output = Result<Arc<TileRegions>, E>> + Send + 'static,
     {
-        let mut running = self.running.lock().unwrap_or_else(|p| p.into_inner());
+        let mut running = self
+            .running
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
         if let Some(rx) = running.get(&key) {
             return rx.clone();
         }
@@ -132,7 +135,9 @@ where
             };
             // Whatever ended it, the measuring loop stops at its next tile.
             stop.cancel();
-            let mut running = all_running.lock().unwrap_or_else(|p| p.into_inner());
+            let mut running = all_running
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner);
             if let Ok(regions) = &result
                 && generations.load(Ordering::Acquire) == generation
             {
@@ -152,7 +157,10 @@ where
 
     /// Drops every tree's regions; measurements under way are not kept.
     pub fn invalidate_all(&self) {
-        let running = self.running.lock().unwrap_or_else(|p| p.into_inner());
+        let running = self
+            .running
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
         self.generation.fetch_add(1, Ordering::AcqRel);
         self.memory.invalidate_all();
         drop(running);

@@ -100,7 +100,10 @@ fn root_for(state: &AppState, text: Option<&str>) -> Result<GeoBbox, AppError> {
     // The content URIs name the root: a root the content routes would refuse is refused here,
     // so a tileset never lists a URI that answers 400.
     parse_bbox(Some(&extent.to_string()), &state.limits).map_err(|e| match e {
-        AppError::BadRequest { code, detail } if code == "bbox_too_large" => AppError::bad_request(
+        AppError::BadRequest {
+            code: "bbox_too_large",
+            detail,
+        } => AppError::bad_request(
             "bbox_too_large",
             format!(
                 "the served buildings span {extent}, more than one tileset may cover: {detail}; \
