@@ -20,7 +20,10 @@ use tower::ServiceExt;
 async fn demo_app(db: &tempfile::TempDir, extra: &[&str]) -> axum::Router {
     let empty = db.path().join("no-dem");
     std::fs::create_dir_all(&empty).unwrap();
-    let mut args = vec!["--assets-dir", "/nonexistent"];
+    let mut args = Vec::new();
+    if !extra.contains(&"--assets-dir") {
+        args.extend(["--assets-dir", "/nonexistent"]);
+    }
     args.extend_from_slice(extra);
     // No data at all: the demo city, not --offline (app_with adds it unless told otherwise).
     let argv: Vec<String> = ["serve", "--dem-dir", empty.to_str().unwrap(), "--cache-db"]
