@@ -162,6 +162,7 @@ async fn openapi_describes_every_route_with_binary_glb_and_json_errors() {
     assert_eq!(
         operations,
         [
+            "DELETE /classify/adapt/{id} delete_adapt",
             "DELETE /classify/{id} delete_batch",
             "GET / viewer",
             "GET /3dtiles-renderer tiles_renderer",

@@ -20,7 +20,6 @@ use std::future::Future;
 use std::io;
 use std::pin::Pin;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::task::{Context, Poll};
 use std::time::Duration;
 use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
@@ -133,14 +132,13 @@ pub async fn serve(
             break;
         };
         let _ = stream.set_nodelay(true);
-        let http2 = Arc::new(AtomicBool::new(false));
+        let streams = Streams::new();
         let io = TokioIo::new(IdleTimeout::new(
             stream,
             limits.first_byte_timeout,
             limits.idle_timeout,
-            http2.clone(),
+            streams.clone(),
         ));
-        let streams = Streams::new();
         let service = streams.service(
             if is_reserved {
                 reserved_app.clone()
@@ -157,8 +155,8 @@ pub async fn serve(
         // Before its first request, an HTTP/2 connection has the first-byte limit (its request
         // comes whole in the frames after the preface); an HTTP/1 one has the first-byte and the
         // header limits, which the stream and hyper enforce sooner (this is their backstop).
-        let first_request = move || {
-            if http2.load(Ordering::Relaxed) {
+        let first_request = move |http2: bool| {
+            if http2 {
                 limits.first_byte_timeout
             } else {
                 limits.first_byte_timeout + limits.header_timeout
@@ -200,14 +198,14 @@ struct IdleTimeout {
     idle_limit: Duration,
     last_traffic: Instant,
     deadline: Pin<Box<Sleep>>,
-    /// Set when the client's first bytes are the HTTP/2 preface.
-    http2: Arc<AtomicBool>,
+    /// The connection's requests, told whether the client's first bytes are the HTTP/2 preface.
+    streams: Streams,
     /// Whether the client has sent anything yet.
     spoken: bool,
 }
 
 impl IdleTimeout {
-    fn new(inner: TcpStream, first_byte: Duration, idle: Duration, http2: Arc<AtomicBool>) -> Self {
+    fn new(inner: TcpStream, first_byte: Duration, idle: Duration, streams: Streams) -> Self {
         let first = first_byte.min(idle);
         Self {
             inner,
@@ -216,7 +214,7 @@ impl IdleTimeout {
             idle_limit: idle,
             last_traffic: Instant::now(),
             deadline: Box::pin(tokio::time::sleep(first)),
-            http2,
+            streams,
             spoken: false,
         }
     }
@@ -259,7 +257,7 @@ impl AsyncRead for IdleTimeout {
                         self.spoken = true;
                         // The preface starts "PRI * HTTP/2.0"; no HTTP/1 method is "PRI".
                         let is_h2 = buf.filled()[before..].starts_with(b"PRI ");
-                        self.http2.store(is_h2, Ordering::Relaxed);
+                        self.streams.set_http2(is_h2);
                     }
                     self.active();
                     // The client has spoken: from now on, the idle limit.

@@ -34,6 +34,9 @@ struct Open {
     idle_since: Instant,
     /// Whether any request was made on the connection.
     served: bool,
+    /// Whether the client opened with the HTTP/2 preface (known once it has sent its first
+    /// bytes).
+    http2: bool,
 }
 
 /// The request count of one connection, shared by its service and its watchdog.
@@ -48,6 +51,7 @@ impl Streams {
             requests: 0,
             idle_since: Instant::now(),
             served: false,
+            http2: false,
         });
         Self {
             open: Arc::new(open),
@@ -64,9 +68,24 @@ impl Streams {
         }
     }
 
+    /// Notes the protocol the client speaks, once its first bytes are read. The watchdog
+    /// ([`Self::idle_for_too_long`]) picks its limit again at once.
+    pub fn set_http2(&self, http2: bool) {
+        self.open.send_if_modified(|o| {
+            let changed = o.http2 != http2;
+            o.http2 = http2;
+            changed
+        });
+    }
+
     /// Completes once the connection has had no open request for too long: `first_request`
-    /// before any request was made, `idle` after one. Never completes while a request is open.
-    pub async fn idle_for_too_long(&self, first_request: impl Fn() -> Duration, idle: Duration) {
+    /// (given whether the client speaks HTTP/2) before any request was made, `idle` after one.
+    /// Never completes while a request is open.
+    pub async fn idle_for_too_long(
+        &self,
+        first_request: impl Fn(bool) -> Duration,
+        idle: Duration,
+    ) {
         let mut rx = self.open.subscribe();
         loop {
             let now = *rx.borrow_and_update();
@@ -76,7 +95,11 @@ impl Streams {
                 }
                 continue;
             }
-            let limit = if now.served { idle } else { first_request() };
+            let limit = if now.served {
+                idle
+            } else {
+                first_request(now.http2)
+            };
             tokio::select! {
                 () = tokio::time::sleep_until(now.idle_since + limit) => return,
                 changed = rx.changed() => if changed.is_err() { return },

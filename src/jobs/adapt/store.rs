@@ -32,7 +32,7 @@ impl AdaptationStore {
             Database::Postgres(_) => {
                 "UPDATE roof_adaptations SET state = 'failed', error = 'its server stopped before \
                  it ended (its lease ran out); ask again', updated_at = $1 WHERE state = 'running' \
-                 AND (lease_until IS NULL OR lease_until < $1)"
+                 AND (lease_until IS NULL OR lease_until <= $1)"
             }
         };
         Ok(on_pool!(&self.db, pool => sqlx::query(sql)
@@ -70,7 +70,7 @@ impl AdaptationStore {
         let stale = "UPDATE roof_adaptations SET state = 'failed', error = 'its server stopped \
                      before it ended (its lease ran out); ask again', updated_at = $1 \
                      WHERE imagery_id = $2 AND state = 'running' \
-                     AND (lease_until IS NULL OR lease_until < $1)";
+                     AND (lease_until IS NULL OR lease_until <= $1)";
         let insert = "INSERT INTO roof_adaptations (id, created_at, updated_at, bbox, imagery_id, \
                       model_id, state, examples, owner, lease_until) \
                       VALUES ($1, $2, $2, $3, $4, $5, 'running', $6, $7, $8)";
