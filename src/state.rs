@@ -16,6 +16,8 @@ pub struct Limits {
     pub max_bbox_km2: f64,
     /// Most ground cells (1 arc-second) a requested box may span.
     pub max_ground_cells: u64,
+    /// Most outline nodes one generation may draw (`--max-scene-nodes`).
+    pub max_scene_nodes: usize,
     pub min_zoom: u8,
     pub max_zoom: u8,
     /// How long a request waits for a free generation slot before a 503.

@@ -1237,3 +1237,48 @@ async fn h2_connections_without_streams_are_closed_pings_or_not() {
     child.kill().unwrap();
     child.wait().unwrap();
 }
+
+/// Round 3, item 6: a generation's working memory grows with the outline nodes it draws (an
+/// upstream with dense data made peaks of 3-5 times `--memory-mb`); `--max-scene-nodes` bounds
+/// them per request. Kirchfeld's box at exactly its node count is drawn, one node less is
+/// refused before any geometry is made, with the count.
+#[tokio::test]
+async fn a_generation_over_its_outline_node_budget_is_refused_with_its_count() {
+    use citymesh_core::building::set::BuildingSet;
+    use citymesh_core::scene::SceneArea;
+    const KIRCHFELD: &str = "8.3877,49.0390,8.4039,49.0640";
+    let records = citymesh_core::osm::read_buildings(&osm_bytes("karlsruhe-kirchfeld.osm.pbf"))
+        .unwrap()
+        .buildings;
+    let set = BuildingSet::new(records);
+    let nodes = SceneArea::Bbox(KIRCHFELD.parse().unwrap())
+        .request(&set)
+        .unwrap()
+        .outline_nodes();
+    assert!(nodes > 10_000, "{nodes}");
+    let pbf = common::data_dir().join("osm/karlsruhe-kirchfeld.osm.pbf");
+    for (budget, status) in [
+        (nodes, StatusCode::OK),
+        (nodes - 1, StatusCode::BAD_REQUEST),
+    ] {
+        let db = tempfile::tempdir().unwrap();
+        let budget = budget.to_string();
+        let app = app_with(
+            &dem_dir(),
+            &db.path().join("c.sqlite"),
+            &["--osm", pbf.to_str().unwrap(), "--max-scene-nodes", &budget],
+        )
+        .await;
+        let answer = get(&app, &format!("/scene.glb?bbox={KIRCHFELD}")).await;
+        assert_eq!(answer.status, status, "budget {budget}");
+        if status == StatusCode::BAD_REQUEST {
+            let body = answer.json();
+            assert_eq!(body["error"], "area_too_complex");
+            let detail = body["detail"].as_str().unwrap();
+            assert!(
+                detail.contains(&format!("{nodes} outline nodes, more than the {budget}")),
+                "{detail}"
+            );
+        }
+    }
+}

@@ -209,3 +209,73 @@ async fn over_data_tiles_each_data_tile_has_its_prior() {
     );
     assert_eq!(stats["buildings"]["roof_shape_inferred"], 2197);
 }
+
+/// Fits of roof priors so far: misses of the priors' cache, from `/metrics`.
+async fn prior_fits(app: &axum::Router) -> u64 {
+    let metrics = get(app, "/metrics").await.text();
+    metrics
+        .lines()
+        .find(|l| {
+            l.starts_with("citymesh_cache_requests_total{")
+                && l.contains("level=\"roof_prior\"")
+                && l.contains("result=\"miss\"")
+        })
+        .map_or(0, |l| l.rsplit(' ').next().unwrap().parse().unwrap())
+}
+
+/// Round 3, item 6: with `--memory-mb 6` the priors' share (2 %, 126 KB) could not keep
+/// Kirchfeld's whole prior (144 KB), so every tile with `roofs=inferred`, cached or not, fitted
+/// it again. The files' buildings are now cut into tiles whose priors each weigh at most a
+/// quarter of the share, and a cached tile fits nothing.
+#[tokio::test]
+async fn with_little_memory_priors_are_cut_to_fit_and_cached_tiles_fit_nothing() {
+    let db = tempfile::tempdir().unwrap();
+    let pbf = data_dir().join("osm/karlsruhe-kirchfeld.osm.pbf");
+    let app = app_with(
+        &dem_dir(),
+        &db.path().join("c.sqlite"),
+        &["--osm", pbf.to_str().unwrap(), "--memory-mb", "6"],
+    )
+    .await;
+    let t = TileCoord::containing(18, 8.3955, 49.0525);
+    let uri = format!("/tiles/18/{}/{}.glb?roofs=inferred", t.x, t.y);
+    let first = get(&app, &uri).await;
+    assert_eq!(first.status, StatusCode::OK);
+    let fitted = prior_fits(&app).await;
+    assert!(fitted >= 1, "{fitted} fits");
+    let again = get(&app, &uri).await;
+    assert_eq!(again.header("x-citymesh-cache"), "hit");
+    assert_eq!(again.header("etag"), first.header("etag"));
+    assert_eq!(
+        prior_fits(&app).await,
+        fitted,
+        "a cached tile fitted its priors again"
+    );
+    // The scopes are tiles of one zoom from the data tiles' (14) on.
+    let stats = get(
+        &app,
+        &format!("/scene/stats?bbox={KIRCHFELD}&roofs=inferred"),
+    )
+    .await
+    .json();
+    let figures = &stats["inferred_roofs"];
+    let priors = figures["priors"].as_array().unwrap();
+    let zooms: std::collections::BTreeSet<u64> = priors
+        .iter()
+        .map(|p| {
+            let scope = p["scope"].as_str().unwrap();
+            scope.split('/').next().unwrap().parse().unwrap()
+        })
+        .collect();
+    assert_eq!(zooms.len(), 1, "{zooms:?}");
+    let zoom = *zooms.first().unwrap();
+    assert!((14..=18).contains(&zoom), "{zoom}");
+    assert!(priors.len() > 1, "{} priors", priors.len());
+    eprintln!(
+        "--memory-mb 6: {} priors at zoom {zoom}; {} inferred, {} uncertain, {} not inferred",
+        priors.len(),
+        figures["inferred"],
+        figures["uncertain"],
+        figures["not_inferred"]
+    );
+}

@@ -22,7 +22,7 @@ mod tile_cache;
 pub use budget::MemoryBudget;
 pub use key::{Encoding, Region, RoofSource, TileId, TileKey};
 pub use region_cache::{RegionCache, Stopped};
-pub use roof_priors::RoofPriors;
+pub use roof_priors::{PRIORS_KEPT, RoofPriors};
 pub use scene_cache::{CachedScene, SceneCache};
 pub use store::{
     DATA_CHANGED_CHANNEL, DataChangedNote, GenerationLock, GenerationTurn, PgTileStore,

@@ -11,6 +11,10 @@ use std::future::Future;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
+/// How many priors as heavy as a scope may make the priors' memory share holds at once:
+/// sources cut their scopes so each prior weighs at most the share over this.
+pub const PRIORS_KEPT: u64 = 4;
+
 pub struct RoofPriors {
     fitted: moka::future::Cache<PriorScope, Arc<RoofPrior>>,
     /// Counts invalidations. A prior fitted while one ran may have learned from the old data:

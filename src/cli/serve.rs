@@ -209,6 +209,13 @@ pub struct ServeArgs {
     #[arg(long, env = "CITYMESH_MAX_GROUND_CELLS", default_value_t = 250_000)]
     pub max_ground_cells: u64,
 
+    /// Most outline nodes (of every ring of the buildings drawn) one request may generate: a
+    /// scene, tile or 3D Tiles content over more answers 400 `area_too_complex`. The working
+    /// memory of a generation grows with them (about 1 KB per node at the peak), so this and
+    /// the generation slots bound it: see docs/architecture.md, Limits.
+    #[arg(long, env = "CITYMESH_MAX_SCENE_NODES", default_value_t = 1_000_000)]
+    pub max_scene_nodes: usize,
+
     /// Largest Overpass answer accepted, megabytes: a larger one is refused (502), nothing stored.
     #[arg(long, env = "CITYMESH_OVERPASS_MAX_MB", default_value_t = 64)]
     pub overpass_max_mb: u64,

@@ -102,6 +102,7 @@ async fn generate_within(
     let slot = generation_slot(state).await?;
     let dem = state.dem.clone();
     let roof_method = state.roof_method;
+    let max_nodes = state.limits.max_scene_nodes;
     // Set when this request is dropped (the client left, or the timeout fired): the blocking
     // work then stops before its next group of buildings and frees its slot.
     let gone = Arc::new(AtomicBool::new(false));
@@ -118,6 +119,16 @@ async fn generate_within(
             .with_roof_method(roof_method);
         if let Some(roofs) = &roofs {
             request = request.with_roofs(roofs);
+        }
+        let nodes = request.outline_nodes();
+        if nodes > max_nodes {
+            return Err(AppError::bad_request(
+                "area_too_complex",
+                format!(
+                    "the buildings here have {nodes} outline nodes, more than the {max_nodes} one \
+                     request may generate (--max-scene-nodes): ask a smaller box or a deeper tile"
+                ),
+            ));
         }
         // Whole buildings may reach past the box: their ground must be loaded too.
         let lookup = dem.lookup(&request.terrain_bbox());

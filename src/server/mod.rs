@@ -10,7 +10,7 @@ pub use connections::ConnectionLimits;
 pub use streams::ClientAddr;
 
 use crate::cache::{
-    MemoryBudget, RoofPriors, TileCache, TileStore, invalidation, replica_invalidation,
+    MemoryBudget, PRIORS_KEPT, RoofPriors, TileCache, TileStore, invalidation, replica_invalidation,
 };
 use crate::classifier::RoofClassifier as _;
 use crate::cli::ServeArgs;
@@ -93,16 +93,22 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         && dem.file_count() == 0
         && store.count().await? == 0;
     let files = if demo {
-        let city = tokio::task::spawn_blocking(|| {
-            citymesh_core::procedural::generate_city(&ProceduralParams::default())
+        let city = tokio::task::spawn_blocking(move || {
+            citymesh_core::procedural::generate_city(&ProceduralParams::default()).map(|city| {
+                FileSource::new(BuildingSet::new(city.records), "demo")
+                    .bound_priors(memory.roof_priors / PRIORS_KEPT)
+            })
         })
         .await??;
-        Some(FileSource::new(BuildingSet::new(city.records), "demo"))
+        Some(city)
     } else if args.osm.is_empty() {
         None
     } else {
         let osm_files = args.osm.clone();
-        let data = tokio::task::spawn_blocking(move || load_osm_files(&osm_files)).await??;
+        let data = tokio::task::spawn_blocking(move || {
+            load_osm_files(&osm_files).map(|f| f.bound_priors(memory.roof_priors / PRIORS_KEPT))
+        })
+        .await??;
         tracing::info!(
             buildings = data.set.records().len(),
             clusters = data.set.clusters().len(),
@@ -256,6 +262,7 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
         limits: Limits {
             max_bbox_km2: args.max_bbox_km2,
             max_ground_cells: args.max_ground_cells,
+            max_scene_nodes: args.max_scene_nodes,
             min_zoom: args.min_zoom,
             max_zoom: args.max_zoom,
             generation_wait: Duration::from_millis(args.generation_wait_ms),

@@ -5,8 +5,9 @@ use super::{AreaBuildings, BuildingSource, DataChanged, PriorScope, SourceError,
 use citymesh_core::building::set::BuildingSet;
 use citymesh_core::geo::{GeoBbox, TileCoord};
 use citymesh_core::osm::{BuildingRecord, OsmError, OsmFormat, Repaired, Skipped, read_buildings};
+use citymesh_core::roof_prior::PREDICTION_BYTES;
 use futures_util::future::BoxFuture;
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 use std::hash::{DefaultHasher, Hash, Hasher};
 use std::io::{BufRead as _, Read};
 use std::path::{Path, PathBuf};
@@ -46,6 +47,9 @@ pub struct FileSource {
     pub repaired: Arc<Vec<Repaired>>,
     /// Changes whenever the files change, so cached tiles built from old data are not reused.
     pub fingerprint: String,
+    /// The zoom of the tiles the files' roof priors learn in; `None`: one prior learns from
+    /// every building ([`FileSource::bound_priors`]).
+    prior_zoom: Option<u8>,
     /// Files never change while the server runs: nothing is ever sent.
     changes: broadcast::Sender<DataChanged>,
 }
@@ -53,13 +57,25 @@ pub struct FileSource {
 impl FileSource {
     /// Buildings given up front (the demo city), under a fixed fingerprint.
     pub fn new(set: BuildingSet, fingerprint: &str) -> Self {
+        let prior_zoom = whole_or_data_tiles(set.records().len());
         Self {
             set: Arc::new(set),
             load_skips: Vec::new(),
             repaired: Arc::default(),
             fingerprint: fingerprint.to_owned(),
+            prior_zoom,
             changes: broadcast::channel(1).0,
         }
+    }
+
+    /// Cuts the files' buildings into prior scopes small enough that each prior weighs at most
+    /// `max_bytes` (so the priors' memory share keeps it, and a cached tile never waits for a
+    /// fit again): all of them when they fit, else the tiles of the coarsest zoom, from the
+    /// data tiles' on, whose every tile fits (at most [`MAX_PRIOR_ZOOM`]). Blocking (a pass
+    /// over the buildings per zoom tried).
+    pub fn bound_priors(mut self, max_bytes: u64) -> Self {
+        self.prior_zoom = prior_zoom(self.set.records(), max_bytes);
+        self
     }
 }
 
@@ -94,10 +110,14 @@ impl BuildingSource for FileSource {
         self.set.extent()
     }
 
-    /// All the files' buildings teach one prior, up to [`MAX_WHOLE_PRIOR`] buildings; larger
-    /// file sets are cut into data-tile-sized scopes, as data tiles are, so a fit stays bounded.
+    /// All the files' buildings teach one prior, up to [`MAX_WHOLE_PRIOR`] buildings and the
+    /// priors' memory share; larger file sets are cut into tiles ([`FileSource::bound_priors`]),
+    /// so a fit stays bounded and its prior is kept.
     fn prior_scope(&self, lon: f64, lat: f64) -> PriorScope {
-        scope_for(self.set.records().len(), lon, lat)
+        match self.prior_zoom {
+            None => PriorScope::Everything,
+            Some(z) => PriorScope::DataTile(TileCoord::containing(z, lon, lat)),
+        }
     }
 
     fn prior_records<'a>(
@@ -219,8 +239,10 @@ pub fn load_osm_files(paths: &[PathBuf]) -> Result<FileSource, OsmFileError> {
             }
         }
     }
+    let set = BuildingSet::new(records);
     Ok(FileSource {
-        set: Arc::new(BuildingSet::new(records)),
+        prior_zoom: whole_or_data_tiles(set.records().len()),
+        set: Arc::new(set),
         load_skips,
         repaired: Arc::new(repaired),
         fingerprint: format!("{:016x}", h.finish()),
@@ -228,13 +250,39 @@ pub fn load_osm_files(paths: &[PathBuf]) -> Result<FileSource, OsmFileError> {
     })
 }
 
-/// The prior scope of a building at (`lon`, `lat`) among `buildings` held.
-fn scope_for(buildings: usize, lon: f64, lat: f64) -> PriorScope {
-    if buildings <= MAX_WHOLE_PRIOR {
-        PriorScope::Everything
-    } else {
-        PriorScope::DataTile(TileCoord::containing(DATA_ZOOM, lon, lat))
+/// The deepest zoom the files' prior scopes are cut to (tiles about 100 m wide).
+pub const MAX_PRIOR_ZOOM: u8 = 18;
+
+/// One prior over every building (`None`) up to [`MAX_WHOLE_PRIOR`] of them, else data tiles.
+fn whole_or_data_tiles(buildings: usize) -> Option<u8> {
+    (buildings > MAX_WHOLE_PRIOR).then_some(DATA_ZOOM)
+}
+
+/// The zoom of the tiles whose buildings' priors each weigh at most `max_bytes` (see
+/// [`FileSource::bound_priors`]); a building counts in the tile of its outline's first node,
+/// as [`BuildingSource::prior_scope`] places it.
+fn prior_zoom(records: &[Arc<BuildingRecord>], max_bytes: u64) -> Option<u8> {
+    let fits = |n: usize| {
+        n <= MAX_WHOLE_PRIOR && (n as u64).saturating_mul(PREDICTION_BYTES as u64) <= max_bytes
+    };
+    if fits(records.len()) {
+        return None;
     }
+    let firsts: Vec<(f64, f64)> = records
+        .iter()
+        .filter_map(|r| r.outers.first()?.nodes.first().map(|n| (n.lon, n.lat)))
+        .collect();
+    (DATA_ZOOM..MAX_PRIOR_ZOOM)
+        .find(|&z| {
+            let mut per_tile: HashMap<TileCoord, usize> = HashMap::new();
+            for &(lon, lat) in &firsts {
+                *per_tile
+                    .entry(TileCoord::containing(z, lon, lat))
+                    .or_default() += 1;
+            }
+            per_tile.values().all(|&n| fits(n))
+        })
+        .or(Some(MAX_PRIOR_ZOOM))
 }
 
 #[cfg(test)]
@@ -304,11 +352,33 @@ mod tests {
 
     #[test]
     fn large_file_sets_teach_priors_by_data_tile() {
-        assert_eq!(scope_for(1_000, 8.4, 49.05), PriorScope::Everything);
-        assert_eq!(
-            scope_for(MAX_WHOLE_PRIOR + 1, 8.4, 49.05),
-            PriorScope::DataTile(TileCoord::containing(14, 8.4, 49.05))
-        );
+        assert_eq!(whole_or_data_tiles(1_000), None);
+        assert_eq!(whole_or_data_tiles(MAX_WHOLE_PRIOR + 1), Some(14));
+    }
+
+    /// Round 3, item 6: a prior heavier than the priors' memory share was never kept, so every
+    /// tile with `roofs=inferred`, cached or not, fitted it again. Scopes are cut until each
+    /// prior fits.
+    #[test]
+    fn prior_scopes_are_cut_until_each_prior_fits_its_bytes() {
+        let city = generate_city(&ProceduralParams::default()).unwrap();
+        let n = city.records.len();
+        let records: Vec<Arc<BuildingRecord>> = city.records.into_iter().map(Arc::new).collect();
+        let whole = (n * PREDICTION_BYTES) as u64;
+        assert_eq!(prior_zoom(&records, whole), None);
+        let max_bytes = whole / 10;
+        let z = prior_zoom(&records, max_bytes).unwrap();
+        assert!((DATA_ZOOM..=MAX_PRIOR_ZOOM).contains(&z));
+        let mut per_tile: HashMap<TileCoord, usize> = HashMap::new();
+        for r in &records {
+            let n = &r.outers[0].nodes[0];
+            *per_tile
+                .entry(TileCoord::containing(z, n.lon, n.lat))
+                .or_default() += 1;
+        }
+        assert!(per_tile.len() > 1);
+        let heaviest = per_tile.values().max().unwrap() * PREDICTION_BYTES;
+        assert!(heaviest as u64 <= max_bytes, "{heaviest} bytes at zoom {z}");
     }
 
     #[tokio::test]

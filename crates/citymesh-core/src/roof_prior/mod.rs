@@ -266,13 +266,18 @@ impl RoofPrior {
         ids
     }
 
-    /// Bytes it occupies, generously counted (for caches).
+    /// Bytes it occupies, generously counted (for caches): at most [`PREDICTION_BYTES`] per
+    /// building it predicts, plus a fixed part.
     pub fn byte_size(&self) -> usize {
         std::mem::size_of::<Self>()
             + self.probabilities.capacity() * (std::mem::size_of::<(OsmId, [f32; 3])>() + 8)
             + 512
     }
 }
+
+/// The most a prior weighs per building of its area (as [`RoofPrior::byte_size`] counts): one
+/// entry of its table, with the table's spare capacity (at most as much again).
+pub const PREDICTION_BYTES: usize = 2 * (std::mem::size_of::<(OsmId, [f32; 3])>() + 8);
 
 /// The roof classifier's probabilities for a building together with the prior's: their
 /// normalised product (Bayes' rule). The classifier learned from classes in equal shares, so its
