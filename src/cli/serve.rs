@@ -211,9 +211,10 @@ pub struct ServeArgs {
 
     /// Most outline nodes (of every ring of the buildings drawn) one request may generate: a
     /// scene, tile or 3D Tiles content over more answers 400 `area_too_complex`. The working
-    /// memory of a generation grows with them (about 1 KB per node at the peak), so this and
-    /// the generation slots bound it: see docs/architecture.md, Limits.
-    #[arg(long, env = "CITYMESH_MAX_SCENE_NODES", default_value_t = 1_000_000)]
+    /// memory of a generation grows with them (about 1.4 KB per node at the peak), so this and
+    /// the generation slots bound it: see docs/architecture.md, Limits. The default takes a
+    /// 25 km2 box three times as dense as Kirchfeld (5,000 nodes per km2).
+    #[arg(long, env = "CITYMESH_MAX_SCENE_NODES", default_value_t = 400_000)]
     pub max_scene_nodes: usize,
 
     /// Largest Overpass answer accepted, megabytes: a larger one is refused (502), nothing stored.
