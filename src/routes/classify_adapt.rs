@@ -201,13 +201,14 @@ fn adaptation_id(path: Result<Path<String>, PathRejection>) -> Result<String, Ap
 ///
 /// A running adaptation stops (within one crop or one fold's fit, on whichever replica runs it)
 /// and is `cancelled`; a done one is `withdrawn`: its head is no longer used, and the newest
-/// other head adapted to this imagery, or the shipped one, is used again.
+/// other head adapted to this imagery, or the shipped one, is used again. Either way the
+/// adaptation is deleted: `GET` and `DELETE` on it answer 404 afterwards.
 #[utoipa::path(delete, path = "/classify/adapt/{id}", tag = "classification",
     params(("id" = String, Path, description = "The id `POST /classify/adapt` answered (32 hex digits)")),
     responses(
         (status = 200, description = "Cancelled or withdrawn", body = AdaptationEnded),
         (status = 400, description = "The id is not 32 hex digits", body = ErrorBody),
-        (status = 404, description = "No such adaptation", body = ErrorBody),
+        (status = 404, description = "No such adaptation (or it was deleted)", body = ErrorBody),
         (status = 409, description = "The adaptation has already ended without a head in use", body = ErrorBody),
         (status = 500, description = "An internal failure; the server log has the cause", body = ErrorBody),
     ))]
@@ -230,6 +231,7 @@ pub async fn delete_adapt(
             roofs.use_newest_or_shipped().await?;
             "withdrawn"
         }
+        other if is_deleted(other) => return Err(deleted(&id, other)),
         other => {
             return Err(AppError::Document {
                 status: StatusCode::CONFLICT,
@@ -264,11 +266,25 @@ pub async fn get_adapt(
     path: Result<Path<String>, PathRejection>,
 ) -> Result<Json<AdaptationStatus>, AppError> {
     let id = adaptation_id(path)?;
-    state
-        .roofs
-        .adaptations
-        .get(&id)
-        .await?
-        .map(Json)
-        .ok_or_else(|| AppError::not_found("no_such_adaptation", format!("no adaptation {id}")))
+    match state.roofs.adaptations.get(&id).await? {
+        Some(a) if is_deleted(&a.state) => Err(deleted(&id, &a.state)),
+        Some(a) => Ok(Json(a)),
+        None => Err(AppError::not_found(
+            "no_such_adaptation",
+            format!("no adaptation {id}"),
+        )),
+    }
+}
+
+/// Whether a `DELETE` ended the adaptation (`cancelled` or `withdrawn`): the API answers 404
+/// for it from then on (its row stays, so a replica still running it sees its lease lost).
+fn is_deleted(state: &str) -> bool {
+    matches!(state, "cancelled" | "withdrawn")
+}
+
+fn deleted(id: &str, state: &str) -> AppError {
+    AppError::not_found(
+        "no_such_adaptation",
+        format!("no adaptation {id}: it was deleted ({state} by DELETE)"),
+    )
 }
