@@ -1,6 +1,6 @@
 //! Fetched imagery tiles in the database (SQLite, or PostgreSQL shared by replicas), with a
 //! time to live and a size bound. Each statement is written once per backend, side by side.
-//! Tested on both in `tests/storage_backends.rs`.
+//! Tested on both in `tests/it/storage_backends.rs`.
 
 use crate::db::Database;
 use citymesh_core::geo::TileCoord;

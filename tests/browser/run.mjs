@@ -275,7 +275,7 @@ try {
   await check('3d-tiles-renderer: picking works on a static export served by a plain file server', async () =>
     pickBuilding(karlsruhe.url, '3dtiles-renderer', 'citymeshTilesRenderer', await exportServed()));
 
-  // What a client loads to show a 5 km x 5 km area from above (the README quotes it): the
+  // What a client loads to show a 5 km x 5 km area from above (docs/clients.md quotes it): the
   // tileset over a 4.9 km square around Kirchfeld (under the 25 km² limit), the camera at 7 km
   // looking straight down.
   const overview = async (page, ready) => {

@@ -1,7 +1,7 @@
 //! Every bad request gets a 4xx with a JSON body that says what to fix; never a 500 or a panic.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
-mod common;
+use crate::common;
 
 use axum::http::StatusCode;
 use common::{app_with, dem_dir, get};

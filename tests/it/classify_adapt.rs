@@ -9,7 +9,7 @@
 //! them right (exact counts), and a tile there changes.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
-mod common;
+use crate::common;
 
 use axum::http::StatusCode;
 use citymesh::jobs::worker::WorkerConfig;

@@ -4,7 +4,7 @@
 //! it and the predictions are compared with the tags. Bad imagery fails buildings, not the run.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
-mod common;
+use crate::common;
 
 use citymesh::classifier::classify_area::agreement;
 use citymesh::classifier::{Passes, RoofClassifier, load_classifier};

@@ -2,7 +2,7 @@
 //! packaging and state, and the glTF Validator's verdict.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
-mod common;
+use crate::common;
 
 use axum::http::StatusCode;
 use common::{app_with, assert_valid_glb, dem_dir, get, glb_positions, glb_triangle_count};

@@ -3,7 +3,7 @@
 //! PostgreSQL, the claims of two replicas' pools never take a job twice.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
-mod common;
+use crate::common;
 
 use citymesh::classifier::Prediction;
 use citymesh::db::Database;

@@ -3,7 +3,7 @@
 //! server's `--height-base highest`) from the highest, as the paper's Figure 5 does.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
-mod common;
+use crate::common;
 
 use axum::http::StatusCode;
 use citymesh_core::terrain::{ElevationModel, HgtTile};

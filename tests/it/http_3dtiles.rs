@@ -3,7 +3,7 @@
 //! building corner decoded through the tileset's transforms back onto its OSM node.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
-mod common;
+use crate::common;
 
 use axum::http::StatusCode;
 use citymesh_core::building::set::BuildingSet;

@@ -3,7 +3,7 @@
 //! worth of pools on one server: one generation per tile, and data changes announced.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
-mod common;
+use crate::common;
 
 use citymesh::cache::{GenerationTurn, PgTileStore, TileKey, TileStore};
 use citymesh::db::Database;

@@ -3,7 +3,7 @@
 //! real file's scene through the Khronos glTF Validator, and each building in exactly one tile.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
-mod common;
+use crate::common;
 
 use axum::http::StatusCode;
 use citymesh_core::building::set::BuildingSet;

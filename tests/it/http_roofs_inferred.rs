@@ -5,7 +5,7 @@
 //! exact: the prior is deterministic.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
-mod common;
+use crate::common;
 
 use axum::http::StatusCode;
 use citymesh_core::geo::TileCoord;

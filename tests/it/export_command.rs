@@ -3,7 +3,7 @@
 //! several), with every content tile of the tree; XYZ exports hold the tiles covering the box.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
-mod common;
+use crate::common;
 
 use common::{data_dir, dem_dir};
 use std::collections::BTreeMap;

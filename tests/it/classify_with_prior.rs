@@ -1,5 +1,5 @@
 //! The roof classifier together with the roof prior (docs/method.md section 14): Kirchfeld with
-//! the roof tags of half its tagged buildings removed (even ids, as `tests/roof_prior.rs`), an
+//! the roof tags of half its tagged buildings removed (even ids, as `tests/it/roof_prior.rs`), an
 //! imagery server started by the test drawing every building with the shape its real tags say,
 //! and the buildings of a part of the area classified through the server. On the hidden
 //! buildings there, the classifier alone, the prior alone and their combination (the normalised
@@ -8,7 +8,7 @@
 //! combination's.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
-mod common;
+use crate::common;
 
 use axum::http::StatusCode;
 use citymesh::jobs::worker::WorkerConfig;

@@ -2,7 +2,7 @@
 //! into a GLB on disk, with the figures as JSON; and clear failures for bad input.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
-mod common;
+use crate::common;
 
 use common::{assert_valid_glb, data_dir, dem_dir};
 use std::process::Command;

@@ -7,7 +7,7 @@
 //! than 1000 jobs, and started again, finishes every job exactly once.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
-mod common;
+use crate::common;
 
 use axum::body::Body;
 use axum::http::{Request, StatusCode};

@@ -3,7 +3,7 @@
 //! and footprints that training never saw.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
-mod common;
+use crate::common;
 
 use citymesh::classifier::input::crop_image;
 use citymesh::classifier::training_set::write_png;

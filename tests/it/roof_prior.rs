@@ -4,7 +4,7 @@
 //! real file with tags. Every figure is exact: the prior is deterministic.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
-mod common;
+use crate::common;
 
 use citymesh_core::osm::{BuildingRecord, OsmId, read_buildings, write_overpass_json};
 use citymesh_core::roof_image::RoofClass;

@@ -3,7 +3,7 @@
 //! bounded amount, and never panics. Long-running cases are bounded by the server's own limits.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
-mod common;
+use crate::common;
 
 use axum::body::Body;
 use axum::http::{Request, StatusCode};

@@ -4,7 +4,7 @@
 //! PostgreSQL started here, imagery from a server started here.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
-mod common;
+use crate::common;
 
 use common::postgres::Postgres;
 use serde_json::Value;

@@ -5,7 +5,7 @@
 //! ground edges.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
-mod common;
+use crate::common;
 
 use axum::http::StatusCode;
 use citymesh_core::building::set::BuildingSet;

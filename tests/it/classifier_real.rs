@@ -4,7 +4,7 @@
 //! the model card's (training/roof_classifier/MODEL_CARD.md); `val` is never trained or tuned on.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
-mod common;
+use crate::common;
 
 use citymesh::classifier::labelled::{LabelledImage, evaluate, read_labels};
 use citymesh::classifier::{MODEL_RULE, Passes, load_classifier};
@@ -214,7 +214,7 @@ fn atlanta_footprints() -> (Vec<citymesh_core::osm::BuildingRecord>, Vec<String>
 /// 48 % for always answering hipped), but it adds nothing to a model that already sees the
 /// footprint as its mask: the product counts the outline twice and gets 85, three fewer than the
 /// model alone. Where a prior knows more than the outline (tags, neighbours' shapes), the
-/// product gains: `tests/classify_with_prior.rs`.
+/// product gains: `tests/it/classify_with_prior.rs`.
 #[test]
 fn on_atlanta_a_prior_of_outlines_alone_adds_nothing_to_the_model() {
     use citymesh_core::learn::cross_validation::argmax;
