@@ -11,6 +11,7 @@ mod classify_adapt;
 mod classify_area;
 mod classify_server;
 mod classify_with_prior;
+mod docs_limits;
 mod export_command;
 mod http_3dtiles;
 mod http_abuse;
