@@ -234,7 +234,8 @@ mod tests {
                     .await;
             })
         };
-        tokio::time::sleep(Duration::from_millis(200)).await;
+        // The preface is read 200 ms after the watchdog started (the paused clock moved on).
+        tokio::time::advance(Duration::from_millis(200)).await;
         streams.set_http2(true);
         watch.await.unwrap();
         assert_eq!(opened.elapsed(), Duration::from_secs(1));

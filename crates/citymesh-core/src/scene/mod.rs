@@ -275,9 +275,13 @@ fn build_groups(
 }
 
 fn outline_nodes(clusters: &[Vec<&BuildingRecord>]) -> usize {
-    clusters
-        .iter()
-        .flatten()
+    ring_nodes(clusters.iter().flatten().copied())
+}
+
+/// The nodes of the records' rings, outer and inner: what building them costs grows with.
+pub(super) fn ring_nodes<'r>(records: impl IntoIterator<Item = &'r BuildingRecord>) -> usize {
+    records
+        .into_iter()
         .flat_map(|b| b.outers.iter().chain(&b.inners))
         .map(|ring| ring.nodes.len())
         .sum()

@@ -179,12 +179,7 @@ impl<'a> SceneRequest<'a> {
     /// memory of [`SceneRequest::generate`] grow with (about 6 vertices and 4.5 triangles per
     /// node).
     pub fn outline_nodes(&self) -> usize {
-        self.groups
-            .iter()
-            .flat_map(|c| self.set.cluster_records(c))
-            .flat_map(|b| b.outers.iter().chain(&b.inners))
-            .map(|ring| ring.nodes.len())
-            .sum()
+        super::ring_nodes(self.groups.iter().flat_map(|c| self.set.cluster_records(c)))
     }
 
     /// Each group's records as the generator sees them (with chosen roofs applied, and only
