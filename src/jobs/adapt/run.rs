@@ -53,13 +53,16 @@ pub async fn run_adaptation(
         policy.lease.clone(),
         stop.clone(),
     );
+    // Biased, the stop first: the work notices the stop too and ends with its own, vaguer
+    // "stopped"; when both are ready, the outcome says why it stopped (the shutdown, a lost lease).
     let outcome = tokio::select! {
-        outcome = adapt(&jobs, &store, &id, examples, &stop) => outcome,
+        biased;
+        () = stop.cancelled() => Err(AdaptFailure::Failed(stopped_why(&jobs))),
         () = tokio::time::sleep(policy.max_run) => Err(AdaptFailure::Failed(format!(
             "stopped after {} s (--adapt-max-s): adapt on a smaller area",
             policy.max_run.as_secs_f64()
         ))),
-        () = stop.cancelled() => Err(AdaptFailure::Failed(stopped_why(&jobs))),
+        outcome = adapt(&jobs, &store, &id, examples, &stop) => outcome,
     };
     // Ends the lease keeper and any fitting still running on the blocking pool.
     stop.cancel();
