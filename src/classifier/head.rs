@@ -1,5 +1,5 @@
 //! Roof-classifier heads fitted on the model's embeddings: the adaptation of the classifier to
-//! one imagery source from labelled examples of it (docs/method.md section 13). A head is a
+//! one imagery source from labelled examples of it (docs/extensions.md section 3). A head is a
 //! multinomial logistic regression on the `embedding` output, fitted in seconds with the turns
 //! and flips of every example as augmentation, cross-validated, and written as a JSON file.
 

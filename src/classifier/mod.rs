@@ -1,4 +1,4 @@
-//! The roof-shape classifier (docs/method.md section 11): a small CNN, trained on citymesh's own
+//! The roof-shape classifier (docs/extensions.md section 1): a small CNN, trained on citymesh's own
 //! renders (`training/roof_classifier/`), run with ONNX Runtime through `ort`.
 //!
 //! [`RoofClassifier`] is what the rest of citymesh calls; [`onnx`] implements it with a model file

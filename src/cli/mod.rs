@@ -66,7 +66,7 @@ pub enum Command {
     /// the predictions as GeoJSON and, with --all, how they agree with the roof:shape tags.
     Classify(ClassifyArgs),
     /// Predict the roof shapes of buildings without `roof:shape` from the tagged buildings of
-    /// the same files (the roof prior, docs/method.md section 14): writes every untagged
+    /// the same files (the roof prior, docs/extensions.md section 4): writes every untagged
     /// building with its class and probability as GeoJSON, and prints the prior's
     /// cross-validated accuracy on the tagged ones.
     InferRoofs(InferRoofsArgs),

@@ -1,4 +1,4 @@
-//! Queued roof-classification jobs (docs/method.md section 11): batches of buildings to classify,
+//! Queued roof-classification jobs (docs/extensions.md section 1): batches of buildings to classify,
 //! kept in the database so nothing is lost on a crash, claimed by workers under a lease so a
 //! worker that dies leaves its jobs to another, and the predictions they store.
 //!

@@ -1,5 +1,5 @@
-//! The roof prior around the core's learner (`citymesh_core::roof_prior`, docs/method.md
-//! section 14): fitted per area of the source's data, kept in memory, and the command that
+//! The roof prior around the core's learner (`citymesh_core::roof_prior`, docs/extensions.md
+//! section 4): fitted per area of the source's data, kept in memory, and the command that
 //! writes its predictions ([`infer_file`]).
 
 pub mod infer_file;

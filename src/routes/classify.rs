@@ -1,4 +1,4 @@
-//! Roof classification jobs over HTTP (docs/method.md section 11): `POST /classify` queues a job
+//! Roof classification jobs over HTTP (docs/extensions.md section 1): `POST /classify` queues a job
 //! per untagged building of a box, `GET /classify/{id}` reports a batch's progress,
 //! `DELETE /classify/{id}` cancels its queued jobs, and `GET /classify/predictions?bbox=` gives
 //! the predictions as GeoJSON. Workers run the jobs (`--classify-workers`); tiles use the results

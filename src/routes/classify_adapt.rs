@@ -1,4 +1,4 @@
-//! Adapting the roof classifier to the served imagery over HTTP (docs/method.md section 13):
+//! Adapting the roof classifier to the served imagery over HTTP (docs/extensions.md section 3):
 //! `POST /classify/adapt` takes the buildings of a box whose `roof:shape` OpenStreetMap tags as
 //! examples, crops and embeds them and fits a new head in the background; `GET
 //! /classify/adapt/{id}` reports its progress and, once fitted, its cross-validated report. The
@@ -59,7 +59,7 @@ fn too_few(detail: String) -> AppError {
 /// Takes the buildings of the box whose `roof:shape` tag names one of the three classes (flat;
 /// gabled; hipped or pyramidal), crops each from the imagery as any building is cropped, and fits
 /// a new head on the model's embedding of them (a logistic regression, cross-validated in 5
-/// folds; docs/method.md section 13). Answers at once; follow it at `GET
+/// folds; docs/extensions.md section 3). Answers at once; follow it at `GET
 /// /classify/adapt/{id}`. When fitted, the head is in use for this imagery: predictions queued
 /// afterwards (`POST /classify`) are made with it and record its id in their `model_id`. Needs
 /// at least 20 examples per class; one adaptation at a time per imagery.

@@ -1,5 +1,5 @@
 //! Adapting the roof classifier to an imagery source from OpenStreetMap's own tags
-//! (docs/method.md section 13), through the server: an imagery server started by the test draws
+//! (docs/extensions.md section 3), through the server: an imagery server started by the test draws
 //! Kirchfeld in a style the model was never trained on (blurred, bands rotated and inverted, as
 //! a false-colour sensor might give), each
 //! building with a roof shape the test assigns (a third each of flat, gabled and hipped, by id).

@@ -1,4 +1,4 @@
-//! Roof classification through the server (docs/method.md section 11): `POST /classify` queues
+//! Roof classification through the server (docs/extensions.md section 1): `POST /classify` queues
 //! the untagged buildings of Kirchfeld (its `roof:shape` tags stripped), workers classify them
 //! from a real imagery server started inside the test on 127.0.0.1 (tiles citymesh's renderer
 //! drew of the real footprints with the shapes their tags say), the predictions are compared with

@@ -1,4 +1,4 @@
-//! The roof classifier together with the roof prior (docs/method.md section 14): Kirchfeld with
+//! The roof classifier together with the roof prior (docs/extensions.md section 4): Kirchfeld with
 //! the roof tags of half its tagged buildings removed (even ids, as `tests/it/roof_prior.rs`), an
 //! imagery server started by the test drawing every building with the shape its real tags say,
 //! and the buildings of a part of the area classified through the server. On the hidden

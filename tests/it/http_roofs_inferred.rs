@@ -1,4 +1,4 @@
-//! `roofs=inferred` over HTTP (docs/method.md section 14): Kirchfeld's untagged roofs take the
+//! `roofs=inferred` over HTTP (docs/extensions.md section 4): Kirchfeld's untagged roofs take the
 //! class the roof prior learned from its tagged ones, in scenes, their figures, XYZ tiles and 3D
 //! Tiles, with the source and probability in each building's metadata; over the `--osm` files
 //! one prior learns from every building, over data tiles one per data tile. Every figure is

@@ -1,4 +1,4 @@
-//! The roof prior on real OSM data (docs/method.md section 14): Kirchfeld with the roof tags of
+//! The roof prior on real OSM data (docs/extensions.md section 4): Kirchfeld with the roof tags of
 //! half its tagged buildings removed (those with an even way or relation id), predicted by
 //! `citymesh infer-roofs` from the other half; and the prior's cross-validated report on every
 //! real file with tags. Every figure is exact: the prior is deterministic.

@@ -1,5 +1,5 @@
 //! Adapting the roof classifier to the served imagery from OpenStreetMap's own tags
-//! (docs/method.md section 13): the buildings of a box that carry a `roof:shape` of the three
+//! (docs/extensions.md section 3): the buildings of a box that carry a `roof:shape` of the three
 //! classes are cropped from the imagery as any building is, the model embeds them, and a head is
 //! fitted, cross-validated and stored in the server's database (`roof_adaptations`, SQLite or
 //! PostgreSQL); when fitted, it is put in use for this imagery. Progress is kept in the database

@@ -1,4 +1,4 @@
-//! `roofs=classified` (docs/method.md section 11): each building without a `roof:shape` (and
+//! `roofs=classified` (docs/extensions.md section 1): each building without a `roof:shape` (and
 //! not part of a building with parts) takes the shape its prediction names when the prediction
 //! is for its current footprint and clears the threshold. Where the roof prior of the
 //! building's area applies (section 14), the prediction is the classifier's probabilities

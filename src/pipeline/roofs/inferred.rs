@@ -1,5 +1,5 @@
 //! `roofs=inferred`: each building without `roof:shape` takes the class the roof prior of its
-//! area gives it (docs/method.md section 14) when the prior does not abstain and the
+//! area gives it (docs/extensions.md section 4) when the prior does not abstain and the
 //! probability reaches [`APPLY_THRESHOLD`]; otherwise it keeps the default. The cache key holds
 //! a digest of the priors' identities.
 

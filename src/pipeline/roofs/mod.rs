@@ -1,5 +1,5 @@
 //! Where an area's roof shapes come from (`roofs=osm|classified|inferred`): tags alone, the
-//! roof classifier's predictions ([`classified`], docs/method.md section 11), or the roof prior
+//! roof classifier's predictions ([`classified`], docs/extensions.md section 1), or the roof prior
 //! learned from the area's tags ([`inferred`], section 14). Both choose shapes only for
 //! buildings without `roof:shape` that are not part of a building with parts ([`candidates`]),
 //! and the tile cache keys hold a digest of what chose them.

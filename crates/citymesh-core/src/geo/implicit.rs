@@ -2,7 +2,10 @@
 //! linearly in longitude and latitude, with `y` counted from the south (unlike XYZ tiles), and
 //! availability bitstreams list tiles in Morton order.
 
-use super::{BboxError, GeoBbox};
+use super::{BboxError, GeoBbox, LocalFrame};
+
+/// Content tiles are at most this wide (metres).
+pub const LEAF_SIZE_M: f64 = 400.0;
 
 /// A tile of the implicit quadtree.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -13,6 +16,16 @@ pub struct ImplicitTile {
 }
 
 impl ImplicitTile {
+    /// The level whose tiles over `root` are at most [`LEAF_SIZE_M`] wide (where content is):
+    /// it depends on the region alone.
+    pub fn leaf_level(root: &GeoBbox) -> u8 {
+        let (lon, lat) = root.center();
+        let (mx, my) = LocalFrame::new(lon, lat, 0.0).metres_per_degree();
+        let side =
+            ((root.max_lon() - root.min_lon()) * mx).max((root.max_lat() - root.min_lat()) * my);
+        (side / LEAF_SIZE_M).log2().ceil().clamp(0.0, 12.0) as u8
+    }
+
     /// Whether the coordinates exist at the level.
     pub fn is_valid(&self) -> bool {
         self.level < 31

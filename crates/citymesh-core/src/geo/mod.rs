@@ -5,6 +5,7 @@ mod bbox;
 mod ecef;
 mod implicit;
 mod local_frame;
+mod region;
 mod tile;
 mod tile_range;
 mod utm;
@@ -12,8 +13,9 @@ mod wkt;
 
 pub use bbox::{BboxError, GeoBbox, MAX_MERCATOR_LAT};
 pub use ecef::{ecef_to_geodetic, geodetic_to_ecef};
-pub use implicit::{ImplicitTile, morton};
+pub use implicit::{ImplicitTile, LEAF_SIZE_M, morton};
 pub use local_frame::{LocalFrame, WGS84_A, WGS84_E2};
+pub use region::Region;
 pub use tile::{MAX_ZOOM, TileCoord, TileError, mercator_y};
 pub use tile_range::TileRange;
 pub use utm::UtmZone;

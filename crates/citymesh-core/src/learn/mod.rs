@@ -2,7 +2,7 @@
 //! ([`softmax_regression`]), gradient-boosted trees ([`boosted_trees`]) and stratified
 //! cross-validation ([`cross_validation`]). citymesh uses the regression to fit a new
 //! roof-classifier head on the embeddings of the buildings whose `roof:shape` is tagged
-//! (docs/method.md, "Adapting the classifier to the user's imagery"), and the trees for the roof
+//! (docs/extensions.md section 3), and the trees for the roof
 //! prior learned from an area's tags (`crate::roof_prior`).
 
 pub mod boosted_trees;

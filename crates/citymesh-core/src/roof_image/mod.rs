@@ -1,4 +1,4 @@
-//! Top-down images of roofs for the roof-shape classifier (docs/method.md section 11).
+//! Top-down images of roofs for the roof-shape classifier (docs/extensions.md section 1).
 //!
 //! [`render`] draws citymesh's own meshes orthographically from above (optionally off nadir), lit
 //! by a sun with cast shadows, into an [`Image`]; [`crop`] is the crop rule that turns imagery

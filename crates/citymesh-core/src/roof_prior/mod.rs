@@ -1,4 +1,4 @@
-//! A roof prior learned from an area's own tags (docs/method.md section 14): the buildings that
+//! A roof prior learned from an area's own tags (docs/extensions.md section 4): the buildings that
 //! carry `roof:shape` teach gradient-boosted trees ([`crate::learn::boosted_trees`]) to tell
 //! flat, gabled and hipped roofs apart from each building's outline, its tags ([`features`]) and
 //! the shapes tagged around it ([`neighbours`]); the trees then give every untagged building of

@@ -15,11 +15,11 @@ use crate::building::feature::property_table;
 use crate::building::{
     BuildingContext, BuildingStats, HeightBase, RoofMethod, generate_cluster_until,
 };
+use crate::geo::Region;
 use crate::geo::{GeoBbox, LocalFrame};
 use crate::mesh::{EncodedGlb, Encoding, Mesh, Placement, encode_glb};
 use crate::osm::BuildingRecord;
 use crate::terrain::{ElevationModel, GroundReport, build_coarse_ground, build_ground};
-use crate::tiles3d::Region;
 use std::ops::Range;
 
 /// How the ground of a scene is drawn.

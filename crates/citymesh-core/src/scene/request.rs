@@ -12,7 +12,6 @@ use crate::geo::{BboxError, GeoBbox, ImplicitTile, LocalFrame, TileCoord};
 use crate::mesh::{EncodedGlb, Encoding, Placement};
 use crate::osm::BuildingRecord;
 use crate::terrain::{ElevationModel, GroundReport};
-use crate::tiles3d::ImplicitLayout;
 use std::borrow::Cow;
 
 /// An area to generate.
@@ -70,7 +69,7 @@ impl SceneArea {
         // Implicit tiles above the leaves are coarser (docs/method.md, levels of detail).
         let detail = match self {
             SceneArea::Implicit { root, tile } => LevelOfDetail {
-                above_leaves: ImplicitLayout::leaf_level_of(root).saturating_sub(tile.level),
+                above_leaves: ImplicitTile::leaf_level(root).saturating_sub(tile.level),
             },
             _ => LevelOfDetail::default(),
         };

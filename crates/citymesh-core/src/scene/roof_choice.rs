@@ -1,5 +1,5 @@
 //! Roof shapes chosen outside the data: for buildings whose OSM data has no `roof:shape`, a shape
-//! decided elsewhere (classified from imagery, docs/method.md section 11, or inferred from the
+//! decided elsewhere (classified from imagery, docs/extensions.md section 1, or inferred from the
 //! area's tags, section 14) stands in for the tag. A tag always wins: a chosen shape never
 //! replaces one the data names.
 

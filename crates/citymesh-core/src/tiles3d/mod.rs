@@ -7,7 +7,8 @@ mod regions;
 mod subtree;
 mod tileset;
 
-pub use regions::{Region, TileRegions, measure_regions};
+pub use crate::geo::Region;
+pub use regions::{TileRegions, measure_regions};
 pub use subtree::{
     SUBTREE_MAGIC, TILE_CLASS, TILE_ERROR_PROPERTY, TILE_REGION_PROPERTY, root_subtree,
     write_subtree,

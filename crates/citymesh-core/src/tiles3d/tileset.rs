@@ -6,9 +6,6 @@ use crate::building::feature::BUILDING_CLASS;
 use crate::geo::{GeoBbox, ImplicitTile, LocalFrame};
 use serde_json::{Value, json};
 
-/// Content tiles are at most this wide (metres).
-pub const LEAF_SIZE_M: f64 = 400.0;
-
 /// The shape of the implicit tree over a region.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ImplicitLayout {
@@ -50,11 +47,7 @@ impl ImplicitLayout {
 
     /// The level whose tiles are at most [`LEAF_SIZE_M`] wide: it depends on the region alone.
     pub fn leaf_level_of(root: &GeoBbox) -> u8 {
-        let (lon, lat) = root.center();
-        let (mx, my) = LocalFrame::new(lon, lat, 0.0).metres_per_degree();
-        let side =
-            ((root.max_lon() - root.min_lon()) * mx).max((root.max_lat() - root.min_lat()) * my);
-        (side / LEAF_SIZE_M).log2().ceil().clamp(0.0, 12.0) as u8
+        ImplicitTile::leaf_level(root)
     }
 
     pub fn available_levels(&self) -> u8 {
