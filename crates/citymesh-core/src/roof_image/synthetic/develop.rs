@@ -6,6 +6,7 @@ use crate::roof_image::noise;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
+/// Camera and sensor effects on rendered imagery: colour balance, haze, blur, noise, JPEG.
 pub(super) fn develop(img: &mut Image, rng: &mut ChaCha8Rng) {
     let exposure = rng.random_range(0.75..1.3f32);
     let gains: [f32; 3] = std::array::from_fn(|_| rng.random_range(0.9..1.1f32));

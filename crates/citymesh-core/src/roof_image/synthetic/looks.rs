@@ -58,8 +58,6 @@ pub(super) struct RoofLook {
     pub(super) axis: [f64; 2],
 }
 
-/// What a triangle of the scene is.
-
 pub(super) fn linear(c: [u8; 3]) -> [f32; 3] {
     c.map(srgb8_to_linear)
 }

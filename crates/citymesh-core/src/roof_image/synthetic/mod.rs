@@ -243,8 +243,6 @@ pub fn render_orthophoto(
     render(&scene.mesh, camera, &sun, &scene)
 }
 
-/// Camera and sensor effects on rendered imagery: colour balance, haze, blur, noise, JPEG.
-
 #[cfg(test)]
 mod tests {
     use super::*;

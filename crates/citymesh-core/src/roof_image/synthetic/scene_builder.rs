@@ -13,6 +13,7 @@ use crate::terrain::ElevationModel;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
+/// What a triangle of the scene is.
 #[derive(Debug, Clone, Copy)]
 pub(super) enum Surface {
     Ground,
@@ -267,8 +268,6 @@ pub(super) fn add_box(
         ]);
     }
 }
-
-/// A tree crown: a lumpy dome of `radius` whose top is at `height`.
 
 impl Albedo for SceneBuilder {
     fn albedo(&self, triangle: usize, p: [f64; 3], normal: [f64; 3]) -> [f32; 3] {

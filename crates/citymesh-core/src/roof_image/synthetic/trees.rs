@@ -66,6 +66,7 @@ impl SceneBuilder {
     }
 }
 
+/// A tree crown: a lumpy dome of `radius` whose top is at `height`.
 pub(super) fn add_tree(
     mesh: &mut Mesh,
     surfaces: &mut Vec<Surface>,
