@@ -9,7 +9,6 @@ use crate::cli::AdaptRoofsArgs;
 use crate::jobs::adapt::{
     AdaptationStore, Lease, Progress, class_counts, fit_on_imagery, tagged_examples,
 };
-use crate::jobs::ring_bounds;
 use citymesh_core::roof_image::RoofClass;
 use serde_json::json;
 
@@ -56,11 +55,7 @@ pub fn run_labels(args: &AdaptRoofsArgs) -> anyhow::Result<bool> {
 /// could be cropped.
 pub async fn run_osm(args: &AdaptRoofsArgs) -> anyhow::Result<bool> {
     let (bbox, records) = super::classify_area::read_area(&args.osm, args.bbox.as_deref())?;
-    let examples = tagged_examples(&records, |ring| {
-        bbox.as_ref().is_none_or(|b| {
-            ring_bounds(ring).is_some_and(|[w, s, e, n]| b.contains((w + e) / 2.0, (s + n) / 2.0))
-        })
-    });
+    let examples = tagged_examples(&records, bbox.as_ref());
     let classifier = load_from_args(&args.classifier)?;
     let db = crate::db::Database::Sqlite(crate::db::open(&args.cache_db).await?);
     let imagery = args.imagery.open(&db, None).await?.ok_or_else(|| {

@@ -5,7 +5,7 @@ use super::{Prediction, RoofClassifier, load_from_args};
 use crate::cli::ClassifyArgs;
 use crate::jobs::worker::{WorkerConfig, run_round};
 use crate::jobs::{
-    JobQueue, RoofJobQueue, Selection, StoredPrediction, footprint_hash, select_buildings,
+    JobQueue, RoofJobQueue, Selection, StoredPrediction, footprint_hash, jobs_in_box,
 };
 use crate::source::read_osm_file;
 use citymesh_core::building::roof::RoofShape;
@@ -36,15 +36,7 @@ pub(super) fn read_area(
 
 /// Runs the command; returns the summary it prints.
 pub async fn run(args: &ClassifyArgs) -> anyhow::Result<String> {
-    let (bbox, mut records) = read_area(&args.osm, args.bbox.as_deref())?;
-    if let Some(b) = &bbox {
-        records.retain(|r| {
-            r.outers
-                .first()
-                .and_then(|o| o.nodes.first())
-                .is_some_and(|n| b.contains(n.lon, n.lat))
-        });
-    }
+    let (bbox, records) = read_area(&args.osm, args.bbox.as_deref())?;
     let classifier: Arc<dyn RoofClassifier> = load_from_args(&args.classifier)?;
     let db = crate::db::Database::Sqlite(crate::db::open(&args.cache_db).await?);
     let imagery = args.imagery.open(&db, None).await?.ok_or_else(|| {
@@ -56,7 +48,8 @@ pub async fn run(args: &ClassifyArgs) -> anyhow::Result<String> {
     } else {
         Selection::Untagged
     };
-    let (jobs, skipped) = select_buildings(&records, selection);
+    // The buildings the box holds, by the rule `POST /classify` uses.
+    let (jobs, skipped) = jobs_in_box(&records, bbox.as_ref(), selection, None);
     let tags: HashMap<String, Option<String>> = records
         .iter()
         .map(|r| (r.id.to_string(), r.tags.get("roof:shape").cloned()))

@@ -29,7 +29,7 @@ pub use queue::{
     BatchCounts, BatchProgress, ClaimedJob, JobError, MAX_ATTEMPTS, NewJob, RoofJobQueue,
     StoredPrediction, footprint_hash, ring_bounds,
 };
-pub use select::{Selection, select_buildings};
+pub use select::{Selection, jobs_in_box, select_buildings};
 pub use service::{ActiveModel, RoofJobs, RoofJobsConfig};
 pub use sqlite::SqliteJobQueue;
 pub use token::{is_token, random_token};

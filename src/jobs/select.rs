@@ -3,9 +3,11 @@
 
 use super::queue::NewJob;
 use citymesh_core::building::cluster::part_of;
+use citymesh_core::building::in_box::{MIN_FOOTPRINT_M2, footprint_area_m2, holds};
+use citymesh_core::geo::GeoBbox;
 use citymesh_core::osm::BuildingRecord;
 use std::borrow::Borrow;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashSet};
 
 /// Which buildings to classify.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -50,5 +52,36 @@ pub fn select_buildings<R: Borrow<BuildingRecord>>(
             footprint: outer.nodes.iter().map(|n| [n.lon, n.lat]).collect(),
         });
     }
+    (jobs, skipped)
+}
+
+/// The jobs for the buildings `bbox` holds (the core's rule, [`holds`]; every building when
+/// there is no box), only those named in `wanted` when it is given, and the buildings left out
+/// by reason: those of [`select_buildings`] among the box's buildings, and `too_small` for
+/// footprints under [`MIN_FOOTPRINT_M2`]. What `POST /classify` and `citymesh classify` queue.
+pub fn jobs_in_box<R: Borrow<BuildingRecord>>(
+    records: &[R],
+    bbox: Option<&GeoBbox>,
+    selection: Selection,
+    wanted: Option<&HashSet<&str>>,
+) -> (Vec<NewJob>, BTreeMap<String, u64>) {
+    let in_box: Vec<&BuildingRecord> = records
+        .iter()
+        .map(R::borrow)
+        .filter(|r| bbox.is_none_or(|b| holds(b, r)))
+        .collect();
+    let (candidates, mut skipped) = select_buildings(&in_box, selection);
+    let mut jobs = Vec::with_capacity(candidates.len());
+    for job in candidates {
+        if wanted.is_some_and(|w| !w.contains(job.osm_id.as_str())) {
+            continue;
+        }
+        if footprint_area_m2(&job.footprint) < MIN_FOOTPRINT_M2 {
+            *skipped.entry("too_small".to_owned()).or_default() += 1;
+            continue;
+        }
+        jobs.push(job);
+    }
+    skipped.retain(|_, n| *n > 0);
     (jobs, skipped)
 }

@@ -7,9 +7,7 @@
 use super::params::parse_bbox;
 use crate::error::{AppError, ErrorBody};
 use crate::jobs::batch_budget::{Refusal, batch_bytes};
-use crate::jobs::{
-    BatchCounts, BatchProgress, RoofJobQueue, Selection, ring_bounds, select_buildings,
-};
+use crate::jobs::{BatchCounts, BatchProgress, RoofJobQueue, Selection, jobs_in_box};
 use crate::pipeline::within_timeout;
 use crate::server::ClientAddr;
 use crate::state::AppState;
@@ -19,8 +17,6 @@ use axum::extract::rejection::{JsonRejection, PathRejection, QueryRejection};
 use axum::extract::{Path, Query, State};
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
-use citymesh_core::building::cluster::record_bounds;
-use citymesh_core::osm::BuildingRecord;
 use citymesh_core::roof_image::RoofClass;
 use serde::{Deserialize, Serialize};
 use serde_json::json;
@@ -34,9 +30,6 @@ pub const MAX_PREDICTIONS: u32 = 10_000;
 /// Half the side (degrees, about 55 m) of the box searched around features that span no area,
 /// such as points naming buildings.
 pub const POINT_MARGIN_DEG: f64 = 0.0005;
-/// Footprints smaller than this (m²) are skipped as `too_small`: sheds and kiosks span a few
-/// pixels of imagery.
-pub const MIN_FOOTPRINT_M2: f64 = 12.0;
 
 /// A box as text, `minLon,minLat,maxLon,maxLat`, or as the GeoJSON array
 /// `[minLon, minLat, maxLon, maxLat]`.
@@ -351,36 +344,13 @@ pub async fn post_classify(
         .osm_ids
         .as_ref()
         .map(|ids| ids.iter().map(String::as_str).collect());
-    // Only the buildings whose footprint's centre lies in the box count, skipped ones too.
-    let in_box: Vec<&BuildingRecord> = buildings
-        .set
-        .records()
-        .iter()
-        .map(AsRef::as_ref)
-        .filter(|r| {
-            let [w, s, e, n] = record_bounds(r);
-            bbox.contains((w + e) / 2.0, (s + n) / 2.0)
-        })
-        .collect();
-    let (candidates, mut skipped) = select_buildings(&in_box, selection);
-    let mut jobs = Vec::new();
-    for job in candidates {
-        let Some(centre) = centre_of(&job.footprint) else {
-            continue;
-        };
-        if !bbox.contains(centre[0], centre[1])
-            || wanted
-                .as_ref()
-                .is_some_and(|w| !w.contains(job.osm_id.as_str()))
-        {
-            continue;
-        }
-        if area_m2(&job.footprint) < MIN_FOOTPRINT_M2 {
-            *skipped.entry("too_small".to_owned()).or_default() += 1;
-            continue;
-        }
-        jobs.push(job);
-    }
+    // The buildings the box holds (the core's rule), skipped ones counted too.
+    let (jobs, skipped) = jobs_in_box(
+        buildings.set.records(),
+        Some(&bbox),
+        selection,
+        wanted.as_ref(),
+    );
     if jobs.len() > MAX_JOBS_PER_BATCH {
         return Err(AppError::bad_request(
             "too_many_buildings",
@@ -391,7 +361,6 @@ pub async fn post_classify(
             ),
         ));
     }
-    skipped.retain(|_, n| *n > 0);
     let model_id = roofs.active().model_id.clone();
     // What the batch keeps in the store, against the budget and the client's share of it.
     let client = client.map_or_else(|| "local".to_owned(), |Extension(c)| c.0.ip().to_string());
@@ -538,58 +507,11 @@ pub async fn predictions(
         .into_response())
 }
 
-/// The centre of a ring's bounding box.
 /// 503: jobs cannot run on this server, and why.
 pub(super) fn classification_unavailable(why: &str) -> AppError {
     AppError::Unavailable {
         code: "classification_unavailable",
         detail: format!("roof classification is not available: {why}"),
         retry_after_secs: 3600,
-    }
-}
-
-pub(super) fn centre_of(ring: &[[f64; 2]]) -> Option<[f64; 2]> {
-    let [w, s, e, n] = ring_bounds(ring)?;
-    Some([(w + e) / 2.0, (s + n) / 2.0])
-}
-
-/// A lon/lat ring's area in m² (shoelace on an equirectangular projection at its latitude).
-fn area_m2(ring: &[[f64; 2]]) -> f64 {
-    let Some(first) = ring.first() else {
-        return 0.0;
-    };
-    let m_per_deg = 111_320.0;
-    let kx = m_per_deg * first[1].to_radians().cos();
-    let pts: Vec<[f64; 2]> = ring
-        .iter()
-        .map(|p| [(p[0] - first[0]) * kx, (p[1] - first[1]) * m_per_deg])
-        .collect();
-    let twice: f64 = (0..pts.len())
-        .map(|i| {
-            let (a, b) = (pts[i], pts[(i + 1) % pts.len()]);
-            a[0] * b[1] - b[0] * a[1]
-        })
-        .sum();
-    twice.abs() / 2.0
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn footprint_area_of_a_10_by_20_m_rectangle() {
-        let (lon, lat) = (8.4f64, 49.0f64);
-        let dx = 10.0 / (111_320.0 * lat.to_radians().cos());
-        let dy = 20.0 / 111_320.0;
-        let ring = [
-            [lon, lat],
-            [lon + dx, lat],
-            [lon + dx, lat + dy],
-            [lon, lat + dy],
-        ];
-        assert!((area_m2(&ring) - 200.0).abs() < 1e-6);
-        assert_eq!(centre_of(&ring), Some([lon + dx / 2.0, lat + dy / 2.0]));
-        assert_eq!(area_m2(&[]), 0.0);
     }
 }

@@ -4,7 +4,7 @@
 //! /classify/adapt/{id}` reports its progress and, once fitted, its cross-validated report. The
 //! head is then in use for this imagery: `POST /classify` queues new predictions made with it.
 
-use super::classify::{BboxValue, centre_of, classification_unavailable, json_rejection};
+use super::classify::{BboxValue, classification_unavailable, json_rejection};
 use super::params::parse_bbox;
 use crate::error::{AppError, ErrorBody};
 use crate::jobs::adapt::{
@@ -170,9 +170,7 @@ async fn gather_examples(
         Ok::<_, AppError>(state.source.buildings(bbox).await?)
     })
     .await?;
-    Ok(tagged_examples(buildings.set.records(), |ring| {
-        centre_of(ring).is_some_and(|c| bbox.contains(c[0], c[1]))
-    }))
+    Ok(tagged_examples(buildings.set.records(), Some(bbox)))
 }
 
 /// An adaptation as ended by `DELETE`.

@@ -9,6 +9,7 @@ mod classifier;
 mod classifier_real;
 mod classify_adapt;
 mod classify_area;
+mod classify_box_rule;
 mod classify_server;
 mod classify_with_prior;
 mod docs_limits;

@@ -13,7 +13,9 @@ pub use store::AdaptationStore;
 
 use super::queue::NewJob;
 use super::select::{Selection, select_buildings};
+use citymesh_core::building::in_box::holds;
 use citymesh_core::building::roof::RoofShape;
+use citymesh_core::geo::GeoBbox;
 use citymesh_core::osm::BuildingRecord;
 use citymesh_core::roof_image::RoofClass;
 use serde::Serialize;
@@ -100,11 +102,11 @@ pub struct AdaptExample {
     pub class: RoofClass,
 }
 
-/// The tagged buildings of `records` whose footprint's centre passes `inside`, with their class,
-/// at most [`MAX_EXAMPLES_PER_CLASS`] per class.
+/// The tagged buildings of `records` that `bbox` holds (the core's rule; all without a box), with
+/// their class, at most [`MAX_EXAMPLES_PER_CLASS`] per class.
 pub fn tagged_examples<R: std::borrow::Borrow<BuildingRecord>>(
     records: &[R],
-    inside: impl Fn(&[[f64; 2]]) -> bool,
+    bbox: Option<&GeoBbox>,
 ) -> Vec<AdaptExample> {
     let class_of: std::collections::HashMap<String, RoofClass> = records
         .iter()
@@ -114,14 +116,19 @@ pub fn tagged_examples<R: std::borrow::Borrow<BuildingRecord>>(
             Some((r.id.to_string(), RoofClass::of_shape(shape)?))
         })
         .collect();
-    let (jobs, _) = select_buildings(records, Selection::All);
+    let in_box: Vec<&BuildingRecord> = records
+        .iter()
+        .map(R::borrow)
+        .filter(|r| bbox.is_none_or(|b| holds(b, r)))
+        .collect();
+    let (jobs, _) = select_buildings(&in_box, Selection::All);
     let mut taken = [0usize; 3];
     let mut out = Vec::new();
     for job in jobs {
         let Some(&class) = class_of.get(&job.osm_id) else {
             continue;
         };
-        if taken[class.index()] >= MAX_EXAMPLES_PER_CLASS || !inside(&job.footprint) {
+        if taken[class.index()] >= MAX_EXAMPLES_PER_CLASS {
             continue;
         }
         taken[class.index()] += 1;

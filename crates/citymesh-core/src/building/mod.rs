@@ -20,6 +20,7 @@ pub mod footprint;
 pub mod generate;
 pub mod group;
 pub mod height_base;
+pub mod in_box;
 mod length;
 pub mod params;
 pub mod roof;

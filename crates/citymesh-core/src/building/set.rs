@@ -28,8 +28,7 @@ pub struct ClusterInfo {
 impl ClusterInfo {
     /// The point that decides the cluster's tile: the centre of its bounding box.
     pub fn representative_point(&self) -> (f64, f64) {
-        let [x0, y0, x1, y1] = self.bounds;
-        ((x0 + x1) / 2.0, (y0 + y1) / 2.0)
+        super::in_box::bounds_centre(self.bounds)
     }
 
     /// The XYZ tile of zoom `z` this cluster belongs to: the one holding its point.
