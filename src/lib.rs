@@ -11,6 +11,7 @@
 pub mod cache;
 pub mod classifier;
 pub mod cli;
+pub mod clock;
 pub mod db;
 pub mod dem;
 pub mod error;

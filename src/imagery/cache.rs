@@ -15,10 +15,9 @@ pub struct ImageryCache {
     stored: AtomicI64,
 }
 
+/// The system's time (Unix milliseconds): [`crate::clock::Clock`] where no other is injected.
 fn now_ms() -> i64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| i64::try_from(d.as_millis()).unwrap_or(i64::MAX))
+    crate::clock::Clock::system().now_ms()
 }
 
 impl ImageryCache {

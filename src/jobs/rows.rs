@@ -21,9 +21,7 @@ pub(super) use prediction_columns;
 
 /// Milliseconds since the Unix epoch.
 pub(super) fn now_ms() -> i64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| i64::try_from(d.as_millis()).unwrap_or(i64::MAX))
+    crate::clock::Clock::system().now_ms()
 }
 
 /// When a lease taken at `now` (ms) for `lease` ends.

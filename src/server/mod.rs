@@ -14,6 +14,7 @@ use crate::cache::{
 };
 use crate::classifier::RoofClassifier as _;
 use crate::cli::ServeArgs;
+use crate::clock::Clock;
 use crate::db;
 use crate::dem::DemStore;
 use crate::jobs::{JobQueue, RoofJobs};
@@ -33,6 +34,12 @@ use tracing_subscriber::EnvFilter;
 
 /// Builds the state a server with these options runs on.
 pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
+    build_state_with_clock(args, Clock::system()).await
+}
+
+/// [`build_state`] with the stores' rows stamped by `clock` (tests move a manual clock instead of
+/// sleeping past a timestamp).
+pub async fn build_state_with_clock(args: &ServeArgs, clock: Clock) -> anyhow::Result<AppState> {
     anyhow::ensure!(
         args.min_zoom <= args.max_zoom,
         "--min-zoom {} is above --max-zoom {}",
@@ -85,7 +92,8 @@ pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
     let memory = MemoryBudget::of_megabytes(args.memory_mb);
     let dem = tokio::task::spawn_blocking(move || DemStore::open(&dem_dir, memory.dem)).await?;
     let metrics = Arc::new(Metrics::default());
-    let store = OsmTileStore::bounded(database.clone(), args.osm_store_mb.saturating_mul(1 << 20));
+    let store = OsmTileStore::bounded(database.clone(), args.osm_store_mb.saturating_mul(1 << 20))
+        .with_clock(clock);
     // Nothing configured at all: a procedural city, so a fresh `cargo run` shows something.
     let demo = args.osm.is_empty()
         && args.overpass_url.is_none()

@@ -242,10 +242,24 @@ async fn online_app(db: &std::path::Path, url: &str) -> axum::Router {
     stub_app(db, url, ["--overpass-timeout-s", "0.5"]).await
 }
 
-/// An app over the stub whose data goes stale after about a second.
-async fn stale_soon_app(db: &std::path::Path, url: &str) -> axum::Router {
-    stub_app(db, url, ["--osm-ttl-hours", "0.0003"]).await
+/// An app over the stub whose data goes stale after an hour, and the clock its data is stamped
+/// with: the test moves it past the hour.
+async fn stale_soon_app(db: &std::path::Path, url: &str) -> (axum::Router, citymesh::clock::Clock) {
+    let clock = citymesh::clock::Clock::manual_from_now();
+    let args = [
+        "--overpass-url",
+        url,
+        "--overpass-retries",
+        "0",
+        "--osm-ttl-hours",
+        "1",
+    ];
+    let app = common::app_with_clock(&dem_dir(), db, &args, clock.clone()).await;
+    (app, clock)
 }
+
+/// An hour and a second: past the data's time to live.
+const PAST_THE_TTL: std::time::Duration = std::time::Duration::from_secs(3_601);
 
 /// A z16 tile well inside data tile 14/8574/5623, over Karlsruhe-Kirchfeld.
 const TILE: &str = "/tiles/16/34297/22493.glb";
@@ -408,12 +422,12 @@ async fn stale_data_is_served_while_a_refresh_runs_and_a_change_invalidates_its_
     let stub = Stub::new();
     let url = start_stub(stub.clone()).await;
     let db = tempfile::tempdir().unwrap();
-    let app = stale_soon_app(&db.path().join("c.sqlite"), &url).await;
+    let (app, clock) = stale_soon_app(&db.path().join("c.sqlite"), &url).await;
     let a = get(&app, TILE).await;
     let before: usize = a.header("x-citymesh-buildings").parse().unwrap();
     assert_eq!(stub.count(), 1);
     stub.set(Mode::Thinner);
-    tokio::time::sleep(std::time::Duration::from_millis(2100)).await;
+    assert!(clock.advance(PAST_THE_TTL));
     // A new tile of the same data tile: generated from the stale data, and a refresh starts.
     let b = get(&app, "/tiles/16/34297/22494.glb").await;
     assert_eq!(b.header("x-citymesh-cache"), "miss");
@@ -421,7 +435,7 @@ async fn stale_data_is_served_while_a_refresh_runs_and_a_change_invalidates_its_
     while stub.count() < 2 || get(&app, TILE).await.header("x-citymesh-cache") != "miss" {
         tokio::time::sleep(std::time::Duration::from_millis(50)).await;
         waited += 1;
-        assert!(waited < 100, "no refresh after 5 s");
+        assert!(waited < 600, "no refresh after 30 s");
     }
     assert_eq!(stub.count(), 2);
     // The refresh changed the data tile: its tiles were dropped and are generated anew.
@@ -462,7 +476,7 @@ async fn a_refresh_that_changes_roof_tags_changes_the_prior_and_the_inferred_til
     let stub = Stub::new();
     let url = start_stub(stub.clone()).await;
     let db = tempfile::tempdir().unwrap();
-    let app = stale_soon_app(&db.path().join("c.sqlite"), &url).await;
+    let (app, clock) = stale_soon_app(&db.path().join("c.sqlite"), &url).await;
     let uri = format!("{TILE}?roofs=inferred");
     let before = get(&app, &uri).await;
     assert_eq!(before.status, StatusCode::OK);
@@ -478,7 +492,7 @@ async fn a_refresh_that_changes_roof_tags_changes_the_prior_and_the_inferred_til
 
     // Mappers removed half the roof tags; the data goes stale and a request starts a refresh.
     stub.set(Mode::FewerRoofTags);
-    tokio::time::sleep(std::time::Duration::from_millis(2100)).await;
+    assert!(clock.advance(PAST_THE_TTL));
     let _ = get(&app, "/tiles/16/34297/22494.glb").await;
     let mut waited = 0;
     let (new_identity, new_tagged) = loop {
@@ -488,7 +502,7 @@ async fn a_refresh_that_changes_roof_tags_changes_the_prior_and_the_inferred_til
         }
         tokio::time::sleep(std::time::Duration::from_millis(50)).await;
         waited += 1;
-        assert!(waited < 100, "the prior did not change after 5 s");
+        assert!(waited < 600, "the prior did not change after 30 s");
     };
     assert_ne!(new_identity, identity);
     // 35 tagged less those with an even id: under 30, so the prior abstains.

@@ -123,7 +123,9 @@ async fn generated_tiles_are_stored_replaced_deleted_and_evicted_alike() {
 
 async fn data_tile_scenario(db: Database) -> Vec<String> {
     // Room for two 1,000-byte Overpass tiles; imported ones never count or leave.
-    let store = OsmTileStore::bounded(db, 2_500);
+    // Uses and fetches are stamped in whole seconds: the test moves the clock a second on.
+    let clock = citymesh::clock::Clock::manual_from_now();
+    let store = OsmTileStore::bounded(db, 2_500).with_clock(clock.clone());
     let t = |x| TileCoord::new(14, x, 5_621).unwrap();
     let mut seen = Vec::new();
     seen.push(format!(
@@ -160,15 +162,15 @@ async fn data_tile_scenario(db: Database) -> Vec<String> {
         got.origin,
         got.fetched_at > 1_700_000_000
     ));
-    tokio::time::sleep(Duration::from_millis(1_100)).await;
+    clock.advance(Duration::from_millis(1_100));
     store
         .put(&t(1), &[3; 1_000], DataOrigin::Overpass)
         .await
         .unwrap();
-    tokio::time::sleep(Duration::from_millis(1_100)).await;
+    clock.advance(Duration::from_millis(1_100));
     // Tile 0 is read again: tile 1 is now the least recently used, and leaves when 2 comes.
     store.get(&t(0)).await.unwrap().unwrap();
-    tokio::time::sleep(Duration::from_millis(1_100)).await;
+    clock.advance(Duration::from_millis(1_100));
     store
         .put(&t(2), &[4; 1_000], DataOrigin::Overpass)
         .await

@@ -135,10 +135,9 @@ impl TileStore {
     }
 }
 
+/// The system's time (Unix milliseconds): [`crate::clock::Clock`] where no other is injected.
 pub(crate) fn now_ms() -> i64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| i64::try_from(d.as_millis()).unwrap_or(i64::MAX))
+    crate::clock::Clock::system().now_ms()
 }
 
 /// The key's columns: scheme, region text, z, x, y.

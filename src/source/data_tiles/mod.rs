@@ -25,7 +25,6 @@ use futures_util::future::BoxFuture;
 use std::collections::HashSet;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
-use store::now_secs;
 use tokio::sync::broadcast;
 
 /// One parsed data tile.
@@ -254,7 +253,7 @@ impl DataTileSource {
                     .inc();
                 let body = fetched?;
                 self.store.put(&t, &body, DataOrigin::Overpass).await?;
-                parse(body.into(), Some(now_secs())).await
+                parse(body.into(), Some(self.store.clock().now_secs())).await
             })
             .await
             .map_err(|e: Arc<SourceError>| (*e).clone());
@@ -265,7 +264,8 @@ impl DataTileSource {
         }
         // Stale data is served now and refreshed in the background.
         if let Ok(p) = &result
-            && p.fetched_at.is_some_and(|f| now_secs() - f > self.ttl_secs)
+            && p.fetched_at
+                .is_some_and(|f| self.store.clock().now_secs() - f > self.ttl_secs)
             && self.upstream.is_some()
         {
             self.start_refresh(t);

@@ -50,6 +50,16 @@ pub fn dem_dir() -> PathBuf {
 
 /// A running app over `dem` with a fresh database in `db_dir`.
 pub async fn app_with(dem: &Path, db: &Path, extra: &[&str]) -> axum::Router {
+    app_with_clock(dem, db, extra, citymesh::clock::Clock::system()).await
+}
+
+/// [`app_with`], its stores' rows stamped by `clock` (a manual one the test moves).
+pub async fn app_with_clock(
+    dem: &Path,
+    db: &Path,
+    extra: &[&str],
+    clock: citymesh::clock::Clock,
+) -> axum::Router {
     let mut argv = vec![
         "serve",
         "--dem-dir",
@@ -66,7 +76,11 @@ pub async fn app_with(dem: &Path, db: &Path, extra: &[&str]) -> axum::Router {
     }
     argv.extend_from_slice(extra);
     let args = ServeArgs::parse_from(argv);
-    app_of(citymesh::server::build_state(&args).await.unwrap())
+    app_of(
+        citymesh::server::build_state_with_clock(&args, clock)
+            .await
+            .unwrap(),
+    )
 }
 
 /// The app of a state, its tile cache known to [`settle_writes`].

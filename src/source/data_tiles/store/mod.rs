@@ -7,6 +7,7 @@
 mod postgres;
 mod sqlite;
 
+use crate::clock::Clock;
 use crate::db::{Database, UseNotes};
 use bytes::Bytes;
 use citymesh_core::geo::TileCoord;
@@ -61,24 +62,16 @@ pub struct OsmTileStore {
     uses: Arc<UseNotes<TileCoord>>,
     /// One eviction at a time.
     evicting: Arc<tokio::sync::Mutex<()>>,
+    /// What fetch times and uses are stamped with.
+    clock: Clock,
 }
 
 /// Uses noted before they are written with the next stored tile.
 const MAX_NOTED_USES: usize = 4_096;
 
-fn now_ms() -> i64 {
-    now_secs().saturating_mul(1000)
-}
-
 /// The content hash stored with a body.
 pub fn content_hash(body: &[u8]) -> String {
     format!("{:016x}", xxhash_rust::xxh3::xxh3_64(body))
-}
-
-pub fn now_secs() -> i64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_secs() as i64)
 }
 
 impl OsmTileStore {
@@ -94,7 +87,19 @@ impl OsmTileStore {
             max_bytes,
             uses: Arc::new(UseNotes::new(MAX_NOTED_USES)),
             evicting: Arc::new(tokio::sync::Mutex::new(())),
+            clock: Clock::system(),
         }
+    }
+
+    /// The store with fetch times and uses stamped by `clock` (tests move a manual one).
+    pub fn with_clock(mut self, clock: Clock) -> Self {
+        self.clock = clock;
+        self
+    }
+
+    /// The clock its rows are stamped with.
+    pub fn clock(&self) -> &Clock {
+        &self.clock
     }
 
     /// Bytes of stored Overpass data.
@@ -147,7 +152,8 @@ impl OsmTileStore {
         };
         if stored.is_some() {
             // Written with the next stored tile; when many are noted, it is time.
-            self.uses.note(*t, now_ms());
+            self.uses
+                .note(*t, self.clock.now_secs().saturating_mul(1000));
         }
         Ok(stored)
     }
@@ -161,8 +167,12 @@ impl OsmTileStore {
     ) -> Result<bool, sqlx::Error> {
         let hash = content_hash(body);
         let previous = match &self.db {
-            Database::Sqlite(p) => sqlite::put(p, t, body, &hash, origin, now_secs()).await?,
-            Database::Postgres(p) => postgres::put(p, t, body, &hash, origin, now_secs()).await?,
+            Database::Sqlite(p) => {
+                sqlite::put(p, t, body, &hash, origin, self.clock.now_secs()).await?
+            }
+            Database::Postgres(p) => {
+                postgres::put(p, t, body, &hash, origin, self.clock.now_secs()).await?
+            }
         };
         if origin == DataOrigin::Overpass {
             self.evict_if_over().await?;
@@ -173,9 +183,13 @@ impl OsmTileStore {
     /// A transaction that imports data tiles all at once: nothing is visible (or kept, if the
     /// import is interrupted) until [`ImportWriter::commit`].
     pub async fn import_writer(&self) -> Result<ImportWriter, sqlx::Error> {
-        Ok(match &self.db {
-            Database::Sqlite(p) => ImportWriter::Sqlite(p.begin_with("BEGIN IMMEDIATE").await?),
-            Database::Postgres(p) => ImportWriter::Postgres(p.begin().await?),
+        let tx = match &self.db {
+            Database::Sqlite(p) => ImportTx::Sqlite(p.begin_with("BEGIN IMMEDIATE").await?),
+            Database::Postgres(p) => ImportTx::Postgres(p.begin().await?),
+        };
+        Ok(ImportWriter {
+            tx,
+            clock: self.clock.clone(),
         })
     }
 
@@ -189,7 +203,12 @@ impl OsmTileStore {
 }
 
 /// Data tiles written in one transaction (see [`OsmTileStore::import_writer`]).
-pub enum ImportWriter {
+pub struct ImportWriter {
+    tx: ImportTx,
+    clock: Clock,
+}
+
+enum ImportTx {
     Sqlite(sqlx::Transaction<'static, sqlx::Sqlite>),
     Postgres(sqlx::Transaction<'static, sqlx::Postgres>),
 }
@@ -199,18 +218,19 @@ impl ImportWriter {
     pub async fn put(&mut self, t: &TileCoord, body: &[u8]) -> Result<bool, sqlx::Error> {
         let hash = content_hash(body);
         let origin = DataOrigin::Import;
-        let previous = match self {
-            Self::Sqlite(tx) => sqlite::put_in(tx, t, body, &hash, origin, now_secs()).await?,
-            Self::Postgres(tx) => postgres::put_in(tx, t, body, &hash, origin, now_secs()).await?,
+        let now = self.clock.now_secs();
+        let previous = match &mut self.tx {
+            ImportTx::Sqlite(tx) => sqlite::put_in(tx, t, body, &hash, origin, now).await?,
+            ImportTx::Postgres(tx) => postgres::put_in(tx, t, body, &hash, origin, now).await?,
         };
         Ok(previous.as_deref() != Some(hash.as_str()))
     }
 
     /// Makes every tile put visible at once.
     pub async fn commit(self) -> Result<(), sqlx::Error> {
-        match self {
-            Self::Sqlite(tx) => tx.commit().await,
-            Self::Postgres(tx) => tx.commit().await,
+        match self.tx {
+            ImportTx::Sqlite(tx) => tx.commit().await,
+            ImportTx::Postgres(tx) => tx.commit().await,
         }
     }
 }
