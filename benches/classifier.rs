@@ -2,7 +2,7 @@
 //! one intra-op thread): a batch of 1 and a batch of 64 crops.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
-use citymesh::classifier::{MODEL_RULE, Passes, load_classifier};
+use citymesh::roofs::classifier::{MODEL_RULE, Passes, load_classifier};
 use citymesh_core::roof_image::synthetic::{FootprintPool, Palette, render_sample};
 use criterion::{Criterion, criterion_group, criterion_main};
 use std::hint::black_box;

@@ -6,10 +6,10 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
 use axum::http::header;
-use citymesh::classifier::{Passes, load_classifier};
-use citymesh::imagery::{Imagery, ImagerySpec};
-use citymesh::jobs::worker::{WorkerConfig, run_round};
-use citymesh::jobs::{RoofJobQueue, Selection, SqliteJobQueue, select_buildings};
+use citymesh::roofs::classifier::{Passes, load_classifier};
+use citymesh::roofs::imagery::{Imagery, ImagerySpec};
+use citymesh::roofs::jobs::worker::{WorkerConfig, run_round};
+use citymesh::roofs::jobs::{RoofJobQueue, Selection, SqliteJobQueue, select_buildings};
 use citymesh_core::geo::GeoBbox;
 use citymesh_core::osm::read_buildings;
 use criterion::{Criterion, criterion_group, criterion_main};

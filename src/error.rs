@@ -254,10 +254,10 @@ impl From<sqlx::Error> for AppError {
     }
 }
 
-impl From<crate::jobs::JobError> for AppError {
-    fn from(e: crate::jobs::JobError) -> Self {
+impl From<crate::roofs::jobs::JobError> for AppError {
+    fn from(e: crate::roofs::jobs::JobError) -> Self {
         match e {
-            crate::jobs::JobError::Store(e) => e.into(),
+            crate::roofs::jobs::JobError::Store(e) => e.into(),
             other => AppError::internal(other),
         }
     }

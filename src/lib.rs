@@ -9,22 +9,17 @@
 //! `docs/architecture.md` draws it.
 
 pub mod cache;
-pub mod classifier;
 pub mod cli;
 pub mod clock;
+pub mod commands;
 pub mod db;
 pub mod dem;
 pub mod error;
-pub mod export;
 pub mod generation_stats;
-pub mod imagery;
-pub mod import;
-pub mod jobs;
 pub mod metrics;
 pub mod pipeline;
-pub mod roof_prior;
+pub mod roofs;
 pub mod routes;
-pub mod scene_file;
 pub mod server;
 pub mod source;
 pub mod state;

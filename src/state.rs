@@ -67,9 +67,9 @@ pub struct ServerState {
     /// Where the pages' npm packages are (`node_modules`), served under `/vendor/`.
     pub assets_dir: std::path::PathBuf,
     /// The roof-shape classifier, when `--roof-classifier` loaded it.
-    pub classifier: Option<Arc<dyn crate::classifier::RoofClassifier>>,
+    pub classifier: Option<Arc<dyn crate::roofs::classifier::RoofClassifier>>,
     /// Roof jobs, their workers, and the predictions `roofs=classified` uses.
-    pub roofs: Arc<crate::jobs::RoofJobs>,
+    pub roofs: Arc<crate::roofs::jobs::RoofJobs>,
     /// The roof priors learned from each area's tags (`roofs=inferred`).
     pub priors: Arc<crate::cache::RoofPriors>,
     /// Cancelled when the server shuts down: long work (adaptations, tree measurements) stops.

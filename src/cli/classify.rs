@@ -86,19 +86,21 @@ impl ImageryArgs {
         &self,
         db: &crate::db::Database,
         metrics: Option<std::sync::Arc<crate::metrics::Metrics>>,
-    ) -> anyhow::Result<Option<crate::imagery::Imagery>> {
+    ) -> anyhow::Result<Option<crate::roofs::imagery::Imagery>> {
         let Some(spec) = self.spec() else {
             return Ok(None);
         };
         let ttl =
             std::time::Duration::from_secs_f64(self.imagery_ttl_hours.clamp(0.0, 1e6) * 3600.0);
-        let cache = crate::imagery::ImageryCache::new(
+        let cache = crate::roofs::imagery::ImageryCache::new(
             db.clone(),
             ttl,
             self.imagery_cache_mb.saturating_mul(1 << 20),
         )
         .await?;
-        let mut imagery = crate::imagery::Imagery::open(spec).await?.with_cache(cache);
+        let mut imagery = crate::roofs::imagery::Imagery::open(spec)
+            .await?
+            .with_cache(cache);
         if let Some(m) = metrics {
             imagery = imagery.with_metrics(m);
         }
@@ -106,9 +108,9 @@ impl ImageryArgs {
     }
 
     /// The service these flags describe, `None` without `--imagery-url`.
-    pub fn spec(&self) -> Option<crate::imagery::ImagerySpec> {
+    pub fn spec(&self) -> Option<crate::roofs::imagery::ImagerySpec> {
         let url = self.imagery_url.as_deref()?;
-        let mut spec = crate::imagery::ImagerySpec::xyz(&self.imagery_id, url);
+        let mut spec = crate::roofs::imagery::ImagerySpec::xyz(&self.imagery_id, url);
         spec.max_zoom = self.imagery_max_zoom;
         spec.tile_size = self.imagery_tile_size;
         spec.attribution.clone_from(&self.imagery_attribution);
@@ -134,7 +136,7 @@ pub struct ClassifierArgs {
     /// model card's accuracy) or `shifted` (each of those also at 5 shifts: five times the
     /// cost).
     #[arg(long, env = "CITYMESH_ROOF_PASSES", value_enum, default_value_t)]
-    pub roof_passes: crate::classifier::onnx::Passes,
+    pub roof_passes: crate::roofs::classifier::onnx::Passes,
 }
 
 /// Options of `citymesh classify-image`.

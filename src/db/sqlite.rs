@@ -108,7 +108,7 @@ mod tests {
         assert!(!is_busy(&sqlx::Error::RowNotFound));
         // A client is told to come back, never given a 500.
         use axum::response::IntoResponse;
-        let answer = crate::error::AppError::from(crate::jobs::JobError::Store(e)).into_response();
+        let answer = crate::error::AppError::from(e).into_response();
         assert_eq!(answer.status(), axum::http::StatusCode::SERVICE_UNAVAILABLE);
         assert_eq!(answer.headers()["retry-after"], "2");
         // Reads go on meanwhile.

@@ -6,9 +6,9 @@
 
 use super::params::parse_bbox;
 use crate::error::{AppError, ErrorBody};
-use crate::jobs::batch_budget::{Refusal, batch_bytes};
-use crate::jobs::{BatchCounts, BatchProgress, RoofJobQueue, Selection, jobs_in_box};
 use crate::pipeline::within_timeout;
+use crate::roofs::jobs::batch_budget::{Refusal, batch_bytes};
+use crate::roofs::jobs::{BatchCounts, BatchProgress, RoofJobQueue, Selection, jobs_in_box};
 use crate::server::ClientAddr;
 use crate::state::AppState;
 use axum::Extension;
@@ -228,7 +228,7 @@ pub(super) fn json_rejection(e: JsonRejection, what_to_send: &str) -> AppError {
 
 fn batch_id(path: Result<Path<String>, PathRejection>) -> Result<String, AppError> {
     let Path(text) = path.map_err(|e| AppError::bad_request("invalid_id", e.body_text()))?;
-    if crate::jobs::is_token(&text) {
+    if crate::roofs::jobs::is_token(&text) {
         Ok(text)
     } else {
         Err(AppError::bad_request(

@@ -7,10 +7,10 @@
 use super::classify::{BboxValue, classification_unavailable, json_rejection};
 use super::params::parse_bbox;
 use crate::error::{AppError, ErrorBody};
-use crate::jobs::adapt::{
+use crate::pipeline::within_timeout;
+use crate::roofs::jobs::adapt::{
     AdaptExample, AdaptFailure, AdaptationStatus, ClassCounts, class_counts, tagged_examples,
 };
-use crate::pipeline::within_timeout;
 use crate::state::AppState;
 use axum::Json;
 use axum::extract::rejection::{JsonRejection, PathRejection};
@@ -94,11 +94,11 @@ pub async fn post_adapt(
             "the roof classifier is not loaded: start the server with --roof-classifier",
         ));
     };
-    let model_id = crate::classifier::RoofClassifier::model_id(base.as_ref()).to_owned();
+    let model_id = crate::roofs::classifier::RoofClassifier::model_id(base.as_ref()).to_owned();
     let bbox = parse_bbox(Some(&request.bbox.text()), &state.limits)?;
     // The check that none runs and the start are one step: of concurrent requests, one starts
     // and the others get 409 before gathering anything.
-    let id = crate::jobs::random_token()?;
+    let id = crate::roofs::jobs::random_token()?;
     let lease = &roofs.adapt_policy.lease;
     if let Some(running) = roofs
         .adaptations
@@ -135,7 +135,7 @@ pub async fn post_adapt(
     };
     let counts = class_counts(&examples);
     roofs.adaptations.set_examples(&id, counts).await?;
-    let min = crate::classifier::head::MIN_PER_CLASS;
+    let min = crate::roofs::classifier::head::MIN_PER_CLASS;
     if counts.iter().any(|&n| n < min) {
         let found: Vec<String> = RoofClass::ALL
             .iter()

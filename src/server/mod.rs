@@ -2,7 +2,7 @@
 //! the listener ([`connections`]: limits on connections and their timeouts), and a graceful stop
 //! on SIGINT or SIGTERM.
 
-mod connections;
+pub(crate) mod connections;
 mod parse_errors;
 mod streams;
 
@@ -12,13 +12,13 @@ pub use streams::ClientAddr;
 use crate::cache::{
     MemoryBudget, PRIORS_KEPT, RoofPriors, TileCache, TileStore, invalidation, replica_invalidation,
 };
-use crate::classifier::RoofClassifier as _;
 use crate::cli::ServeArgs;
 use crate::clock::Clock;
 use crate::db;
 use crate::dem::DemStore;
-use crate::jobs::{JobQueue, RoofJobs};
 use crate::metrics::Metrics;
+use crate::roofs::classifier::RoofClassifier as _;
+use crate::roofs::jobs::{JobQueue, RoofJobs};
 use crate::source::data_tiles::{DataTileMemory, OsmTileStore};
 use crate::source::{BuildingSource, DataTileSource, FileSource, load_osm_files};
 use crate::state::{AppState, Limits, ServerState};
@@ -26,11 +26,9 @@ use crate::upstream::{OverpassClient, OverpassConfig};
 use anyhow::Context;
 use citymesh_core::building::set::BuildingSet;
 use citymesh_core::procedural::ProceduralParams;
-use std::io::IsTerminal;
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::Semaphore;
-use tracing_subscriber::EnvFilter;
 
 /// Builds the state a server with these options runs on.
 pub async fn build_state(args: &ServeArgs) -> anyhow::Result<AppState> {
@@ -87,7 +85,7 @@ pub async fn build_state_with_clock(args: &ServeArgs, clock: Clock) -> anyhow::R
     // Cancelled on shutdown: long work (adaptations, tree measurements) stops.
     let stopping = tokio_util::sync::CancellationToken::new();
     // Who this process is in the announcements it sends other replicas.
-    let replica = crate::jobs::random_token()?;
+    let replica = crate::roofs::jobs::random_token()?;
     let dem_dir = args.dem_dir.clone();
     let memory = MemoryBudget::of_megabytes(args.memory_mb);
     let dem = tokio::task::spawn_blocking(move || DemStore::open(&dem_dir, memory.dem)).await?;
@@ -193,7 +191,7 @@ pub async fn build_state_with_clock(args: &ServeArgs, clock: Clock) -> anyhow::R
         .max(1);
     let classifier = if args.roof_classifier {
         let c = &args.classifier;
-        match crate::classifier::load_onnx(
+        match crate::roofs::classifier::load_onnx(
             c.onnxruntime_lib.as_deref(),
             c.roof_model.as_deref(),
             c.roof_passes,
@@ -212,10 +210,10 @@ pub async fn build_state_with_clock(args: &ServeArgs, clock: Clock) -> anyhow::R
     };
     let model_id = match (&classifier, &args.classifier.roof_model) {
         (Some(c), _) => c.model_id().to_owned(),
-        (None, Some(path)) => crate::classifier::model_id_of(
+        (None, Some(path)) => crate::roofs::classifier::model_id_of(
             &std::fs::read(path).with_context(|| format!("reading {}", path.display()))?,
         ),
-        (None, None) => crate::classifier::model_id_of(crate::classifier::MODEL),
+        (None, None) => crate::roofs::classifier::model_id_of(crate::roofs::classifier::MODEL),
     };
     let imagery = args
         .imagery
@@ -237,14 +235,14 @@ pub async fn build_state_with_clock(args: &ServeArgs, clock: Clock) -> anyhow::R
         .await?,
     );
     if let db::Database::Postgres(pool) = &database {
-        crate::jobs::replica_predictions::listen(pool.clone(), roofs.clone()).await?;
+        crate::roofs::jobs::replica_predictions::listen(pool.clone(), roofs.clone()).await?;
     }
     tracing::info!(
         predictions = roofs.active().index.len(),
         imagery = %roofs.imagery_id,
         "roof predictions loaded"
     );
-    let classifier = classifier.map(|c| c as Arc<dyn crate::classifier::RoofClassifier>);
+    let classifier = classifier.map(|c| c as Arc<dyn crate::roofs::classifier::RoofClassifier>);
     Ok(AppState::new(ServerState {
         database,
         classifier,
@@ -285,9 +283,9 @@ fn roof_jobs_config(
     args: &ServeArgs,
     replica: &str,
     stopping: &tokio_util::sync::CancellationToken,
-) -> anyhow::Result<crate::jobs::RoofJobsConfig> {
-    use crate::jobs::adapt::{AdaptPolicy, Lease};
-    use crate::jobs::batch_budget::BatchLimits;
+) -> anyhow::Result<crate::roofs::jobs::RoofJobsConfig> {
+    use crate::roofs::jobs::adapt::{AdaptPolicy, Lease};
+    use crate::roofs::jobs::batch_budget::BatchLimits;
     anyhow::ensure!(
         (0.0..=100.0).contains(&args.classify_client_share_percent),
         "--classify-client-share-percent must be 0 to 100"
@@ -302,7 +300,7 @@ fn roof_jobs_config(
         );
     }
     let max_bytes = args.classify_store_mb.saturating_mul(1 << 20);
-    Ok(crate::jobs::RoofJobsConfig {
+    Ok(crate::roofs::jobs::RoofJobsConfig {
         batch_limits: BatchLimits {
             max_bytes,
             client_bytes: (max_bytes as f64 * args.classify_client_share_percent / 100.0) as u64,
@@ -318,102 +316,4 @@ fn roof_jobs_config(
         },
         stopping: stopping.clone(),
     })
-}
-
-/// Runs `citymesh serve` until SIGINT or SIGTERM.
-pub async fn run(args: ServeArgs) -> anyhow::Result<()> {
-    let filter = EnvFilter::try_new(&args.log_level)
-        .with_context(|| format!("--log-level '{}' is not a valid filter", args.log_level))?;
-    tracing_subscriber::fmt()
-        .with_env_filter(filter)
-        .with_ansi(std::io::stdout().is_terminal())
-        .init();
-
-    let state = build_state(&args).await?;
-    let workers = state.roofs.spawn_workers(
-        args.classify_workers,
-        crate::jobs::worker::WorkerConfig {
-            lease: Duration::from_secs_f64(args.classify_lease_s.clamp(1.0, 86_400.0)),
-            ..Default::default()
-        },
-    );
-    match state.roofs.why_not_running() {
-        None => tracing::info!(
-            workers = workers.len(),
-            "roof classification workers started"
-        ),
-        Some(why) => tracing::info!("roof jobs are queued but not run here: {why}"),
-    }
-    if state.dem.file_count() == 0 {
-        tracing::warn!(dir = %args.dem_dir.display(), "no SRTM files: the ground is flat at 0 m (pass --dem-dir)");
-    }
-    let listener = tokio::net::TcpListener::bind(args.listen)
-        .await
-        .with_context(|| format!("cannot listen on {}", args.listen))?;
-    let addr = listener.local_addr()?;
-    tracing::info!(
-        "citymesh {} listening on http://{addr}/ (API docs at http://{addr}/docs)",
-        env!("CARGO_PKG_VERSION")
-    );
-    if state.demo {
-        tracing::info!(
-            "no data configured (no --osm, --overpass-url, DEM files or imported data): serving a \
-             procedural demo city at {} E {} N; open http://{addr}/ or http://{addr}/procedural.glb",
-            citymesh_core::procedural::DEFAULT_LON,
-            citymesh_core::procedural::DEFAULT_LAT
-        );
-    }
-    let limits = ConnectionLimits {
-        max_connections: args.max_connections.max(1),
-        reserved_connections: args.reserved_connections,
-        first_byte_timeout: Duration::from_secs_f64(args.first_byte_timeout_s),
-        header_timeout: Duration::from_secs_f64(args.header_timeout_s),
-        idle_timeout: Duration::from_secs_f64(args.idle_timeout_s),
-    };
-    let tiles = state.tiles.clone();
-    let roofs = state.roofs.clone();
-    let stopping = state.stopping.clone();
-    let signal = async move {
-        shutdown_signal().await;
-        // Long work stops now; requests in flight finish.
-        stopping.cancel();
-    };
-    connections::serve(listener, crate::routes::app(state), limits, signal).await;
-    // Tiles generated last are written to the database after their responses: finish those
-    // writes.
-    tiles.flush().await;
-    roofs.shut_down(Duration::from_secs(10)).await;
-    for w in workers {
-        w.abort();
-    }
-    tracing::info!("stopped");
-    Ok(())
-}
-
-async fn shutdown_signal() {
-    let ctrl_c = async {
-        if let Err(e) = tokio::signal::ctrl_c().await {
-            tracing::error!("cannot listen for Ctrl-C: {e}");
-            std::future::pending::<()>().await;
-        }
-    };
-    #[cfg(unix)]
-    let terminate = async {
-        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
-            Ok(mut s) => {
-                s.recv().await;
-            }
-            Err(e) => {
-                tracing::error!("cannot listen for SIGTERM: {e}");
-                std::future::pending::<()>().await;
-            }
-        }
-    };
-    #[cfg(not(unix))]
-    let terminate = std::future::pending::<()>();
-    tokio::select! {
-        () = ctrl_c => {},
-        () = terminate => {},
-    }
-    tracing::info!("shutting down: finishing requests in flight");
 }

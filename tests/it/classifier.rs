@@ -5,9 +5,9 @@
 
 use crate::common;
 
-use citymesh::classifier::input::crop_image;
-use citymesh::classifier::training_set::write_png;
-use citymesh::classifier::{
+use citymesh::roofs::classifier::input::crop_image;
+use citymesh::roofs::classifier::training_set::write_png;
+use citymesh::roofs::classifier::{
     MODEL, MODEL_RULE, Passes, RoofClassifier, load_classifier, model_id_of,
 };
 use citymesh_core::osm::read_buildings;
@@ -116,7 +116,7 @@ fn probabilities_sum_to_one_and_batches_answer_as_single_crops() {
 fn batches_answer_as_single_crops(
     c: &Arc<dyn RoofClassifier>,
     crops: &[citymesh_core::roof_image::Crop],
-) -> Vec<citymesh::classifier::Prediction> {
+) -> Vec<citymesh::roofs::classifier::Prediction> {
     let batched = c.classify(crops).unwrap();
     assert_eq!(batched.len(), 70);
     for (crop, b) in crops.iter().zip(&batched) {

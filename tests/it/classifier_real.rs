@@ -6,8 +6,8 @@
 
 use crate::common;
 
-use citymesh::classifier::labelled::{LabelledImage, evaluate, read_labels};
-use citymesh::classifier::{MODEL_RULE, Passes, load_classifier};
+use citymesh::roofs::classifier::labelled::{LabelledImage, evaluate, read_labels};
+use citymesh::roofs::classifier::{MODEL_RULE, Passes, load_classifier};
 use std::path::PathBuf;
 
 /// Atlanta `val` crops the shipped model gets right (of 111), with the footprint mask.

@@ -12,7 +12,7 @@
 use crate::common;
 
 use axum::http::StatusCode;
-use citymesh::jobs::worker::WorkerConfig;
+use citymesh::roofs::jobs::worker::WorkerConfig;
 use citymesh_core::geo::TileCoord;
 use citymesh_core::osm::{BuildingRecord, read_buildings, write_overpass_json};
 use std::collections::HashMap;

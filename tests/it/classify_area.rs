@@ -6,11 +6,11 @@
 
 use crate::common;
 
-use citymesh::classifier::classify_area::agreement;
-use citymesh::classifier::{Passes, RoofClassifier, load_classifier};
-use citymesh::imagery::{Imagery, ImagerySpec};
-use citymesh::jobs::worker::{WorkerConfig, run_round};
-use citymesh::jobs::{RoofJobQueue, Selection, SqliteJobQueue, select_buildings};
+use citymesh::commands::classify::agreement;
+use citymesh::roofs::classifier::{Passes, RoofClassifier, load_classifier};
+use citymesh::roofs::imagery::{Imagery, ImagerySpec};
+use citymesh::roofs::jobs::worker::{WorkerConfig, run_round};
+use citymesh::roofs::jobs::{RoofJobQueue, Selection, SqliteJobQueue, select_buildings};
 use citymesh_core::geo::GeoBbox;
 use citymesh_core::osm::{BuildingRecord, read_buildings};
 use std::collections::HashMap;
@@ -39,7 +39,7 @@ async fn classify(
     classifier: &Arc<dyn RoofClassifier>,
 ) -> (
     std::collections::BTreeMap<String, u64>,
-    Vec<(Option<String>, citymesh::classifier::Prediction)>,
+    Vec<(Option<String>, citymesh::roofs::classifier::Prediction)>,
 ) {
     let queue = SqliteJobQueue::new(citymesh::db::open(":memory:").await.unwrap());
     let (jobs, _) = select_buildings(records, Selection::All);
@@ -206,7 +206,7 @@ async fn wms_and_mbtiles_sources_give_the_crops_xyz_gives() {
     write_mbtiles(&file, &tiles).await;
     let mbtiles = open(file.to_str().unwrap().to_owned()).await;
     let (_, from_mbtiles) = classify(&records, &mbtiles, &classifier).await;
-    let probabilities = |v: &[(Option<String>, citymesh::classifier::Prediction)]| {
+    let probabilities = |v: &[(Option<String>, citymesh::roofs::classifier::Prediction)]| {
         v.iter().map(|(_, p)| p.probabilities).collect::<Vec<_>>()
     };
     assert_eq!(probabilities(&from_wms), probabilities(&from_xyz));

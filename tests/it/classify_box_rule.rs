@@ -67,9 +67,7 @@ async fn the_server_and_the_command_classify_the_same_buildings_of_a_box() {
         out.to_str().unwrap(),
         "--quiet",
     ]);
-    let summary = citymesh::classifier::classify_area::run(&command)
-        .await
-        .unwrap();
+    let summary = citymesh::commands::classify::run(&command).await.unwrap();
     let (by_server, by_command) = (queued(&server_db).await, queued(&command_db).await);
     assert_eq!(by_server, by_command, "{server_counts} / {summary}");
     // The untagged buildings (not parts, without parts, at least 12 m²) whose centre the box

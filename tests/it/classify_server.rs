@@ -12,7 +12,7 @@ use crate::common;
 use axum::body::Body;
 use axum::http::{Request, StatusCode};
 use citymesh::cli::ServeArgs;
-use citymesh::jobs::worker::WorkerConfig;
+use citymesh::roofs::jobs::worker::WorkerConfig;
 use citymesh::state::AppState;
 use citymesh_core::geo::{GeoBbox, TileCoord};
 use citymesh_core::osm::{BuildingRecord, read_buildings, write_overpass_json};
@@ -310,7 +310,7 @@ async fn stripped_kirchfeld_classified_through_the_api_agrees_with_its_tags_and_
     state.roofs.active().index.insert(
         moved_id.clone(),
         entry.footprint_hash.clone(),
-        citymesh::classifier::Prediction::new(turned),
+        citymesh::roofs::classifier::Prediction::new(turned),
         1.0,
     );
     let home_after = common::get(&app, &tile_uri(home, "classified")).await;
@@ -833,7 +833,7 @@ async fn post_classify_gathers_its_buildings_within_the_request_timeout() {
 /// batch gives its bytes back; finished batches expire.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn classification_batches_stay_within_their_budget_and_expire() {
-    use citymesh::jobs::batch_budget::batch_bytes;
+    use citymesh::roofs::jobs::batch_budget::batch_bytes;
     let dir = tempfile::tempdir().unwrap();
     let (osm, _) = stripped_kirchfeld(dir.path());
     let imagery = common::imagery::imagery_server().await;

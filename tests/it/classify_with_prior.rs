@@ -11,7 +11,7 @@
 use crate::common;
 
 use axum::http::StatusCode;
-use citymesh::jobs::worker::WorkerConfig;
+use citymesh::roofs::jobs::worker::WorkerConfig;
 use citymesh_core::learn::cross_validation::argmax;
 use citymesh_core::osm::{BuildingRecord, OsmId, read_buildings, write_overpass_json};
 use citymesh_core::roof_image::RoofClass;

@@ -159,7 +159,7 @@ async fn over_data_tiles_each_data_tile_has_its_prior() {
     let db = tempfile::tempdir().unwrap();
     let file = db.path().join("c.sqlite");
     let pbf = data_dir().join("osm/karlsruhe-kirchfeld.osm.pbf");
-    citymesh::import::import(&[pbf], file.to_str().unwrap(), true)
+    citymesh::commands::import::import(&[pbf], file.to_str().unwrap(), true)
         .await
         .unwrap();
     let app = app_with(&dem_dir(), &file, &["--offline"]).await;

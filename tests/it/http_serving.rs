@@ -520,7 +520,7 @@ async fn an_import_that_changes_data_drops_exactly_the_tiles_over_it() {
     let import = |p: std::path::PathBuf| {
         let f = file.clone();
         async move {
-            citymesh::import::import(&[p], f.to_str().unwrap(), true)
+            citymesh::commands::import::import(&[p], f.to_str().unwrap(), true)
                 .await
                 .unwrap()
         }
@@ -614,7 +614,7 @@ async fn import_then_offline_serves_every_building_once_with_seamless_ground() {
     let db = tempfile::tempdir().unwrap();
     let file = db.path().join("c.sqlite");
     let pbf = data_dir().join("osm/karlsruhe-kirchfeld.osm.pbf");
-    let report = citymesh::import::import(&[pbf], file.to_str().unwrap(), true)
+    let report = citymesh::commands::import::import(&[pbf], file.to_str().unwrap(), true)
         .await
         .unwrap();
     assert_eq!(report.buildings, 2995 + 31);

@@ -4,8 +4,8 @@
 //! transaction, so one that stops midway leaves the store as it was.
 #![allow(clippy::unwrap_used)] // test code: failing is the point
 
+use citymesh::commands::import::import_into;
 use citymesh::db::{self, Database};
-use citymesh::import::import_into;
 use citymesh::source::data_tiles::OsmTileStore;
 use citymesh_core::geo::TileCoord;
 use serde_json::json;

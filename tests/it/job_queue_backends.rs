@@ -5,10 +5,10 @@
 
 use crate::common;
 
-use citymesh::classifier::Prediction;
 use citymesh::db::Database;
-use citymesh::jobs::adapt::{AdaptFailure, AdaptationStore, Lease};
-use citymesh::jobs::{MAX_ATTEMPTS, NewJob, PgJobQueue, RoofJobQueue, SqliteJobQueue};
+use citymesh::roofs::classifier::Prediction;
+use citymesh::roofs::jobs::adapt::{AdaptFailure, AdaptationStore, Lease};
+use citymesh::roofs::jobs::{MAX_ATTEMPTS, NewJob, PgJobQueue, RoofJobQueue, SqliteJobQueue};
 use common::postgres::Postgres;
 use std::collections::{BTreeMap, HashSet};
 use std::time::Duration;

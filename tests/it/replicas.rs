@@ -213,11 +213,12 @@ fn some_buildings(records: &[citymesh_core::osm::BuildingRecord], n: usize) -> V
         .iter()
         .filter(|r| centre_in(citymesh_core::building::cluster::record_bounds(r)))
         .collect();
-    let (jobs, _) = citymesh::jobs::select_buildings(&in_box, citymesh::jobs::Selection::All);
+    let (jobs, _) =
+        citymesh::roofs::jobs::select_buildings(&in_box, citymesh::roofs::jobs::Selection::All);
     let mut ids: Vec<String> = jobs
         .into_iter()
         .filter(|j| {
-            centre_in(citymesh::jobs::ring_bounds(&j.footprint).unwrap())
+            centre_in(citymesh::roofs::jobs::ring_bounds(&j.footprint).unwrap())
                 && rough_area_m2(&j.footprint) > 30.0
         })
         .map(|j| j.osm_id)

@@ -7,7 +7,7 @@ use crate::common;
 
 use citymesh::cache::{GenerationTurn, PgTileStore, TileKey, TileStore};
 use citymesh::db::Database;
-use citymesh::imagery::ImageryCache;
+use citymesh::roofs::imagery::ImageryCache;
 use citymesh::source::data_tiles::{DataOrigin, OsmTileStore};
 use citymesh_core::geo::TileCoord;
 use common::postgres::Postgres;

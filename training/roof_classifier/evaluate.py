@@ -8,7 +8,7 @@ the footprint mask was given; writes them to a JSON file for the model card.
 With `rect`, crops with a known footprint are averaged over the 4 turns and flips of a rectangle
 only (for a model trained with `train.py --symmetry rect`); crops without one over all 8.
 With `shift`, each turn is also run with the crop shifted by 2 px each way (wrapping around),
-as citymesh does (`SHIFTS` in src/classifier/onnx.rs).
+as citymesh does (`SHIFTS` in src/roofs/classifier/onnx.rs).
 """
 
 import json

@@ -42,7 +42,8 @@ pub fn import(bytes: &[u8]) {
             return;
         };
         let db = Database::Sqlite(pool);
-        let result = citymesh::import::import_into(std::slice::from_ref(&file), &db, true).await;
+        let result =
+            citymesh::commands::import::import_into(std::slice::from_ref(&file), &db, true).await;
         let stored = OsmTileStore::new(db.clone()).count().await.unwrap_or(0);
         match result {
             Ok(report) => {

@@ -9,7 +9,7 @@
 use super::{candidates, priors_of, scope_of};
 use crate::cache::RoofSource;
 use crate::error::AppError;
-use crate::jobs::footprint_hash;
+use crate::roofs::jobs::footprint_hash;
 use crate::source::AreaBuildings;
 use crate::state::AppState;
 use citymesh_core::osm::{BuildingRecord, OsmId};
@@ -118,7 +118,7 @@ pub async fn classified_roofs(
             figures.with_prior += 1;
             digest.update(identity.as_bytes());
         }
-        let p = crate::classifier::Prediction::new(probabilities);
+        let p = crate::roofs::classifier::Prediction::new(probabilities);
         if p.confidence() >= jobs.threshold {
             let class: RoofClass = p.class();
             choice.insert(*record_id, class.shape(), p.confidence());

@@ -1,7 +1,7 @@
 //! OSM files into the data-tile store, so the server can run fully offline. Each building is
 //! stored with every data tile its outline overlaps, in the same Overpass JSON layout an upstream
 //! answer has; the report lists the areas whose data changed, for the caller to drop what was
-//! generated from them (`crate::import`).
+//! generated from them (`crate::commands::import`).
 
 use super::data_tile::{DATA_ZOOM, affected_area};
 use super::store::OsmTileStore;

@@ -3,11 +3,10 @@
 //! lost, at `--adapt-max-s`, and when the server shuts down.
 
 use super::{AdaptExample, AdaptationStore, Lease};
-use crate::classifier::head::{AdaptError, MIN_PER_CLASS, RoofHead, fit_head};
-use crate::classifier::onnx::OnnxClassifier;
-use crate::imagery::{Imagery, TileMemo, crop_footprint};
-use crate::jobs::JobError;
-use crate::jobs::RoofJobs;
+use crate::roofs::classifier::head::{AdaptError, MIN_PER_CLASS, RoofHead, fit_head};
+use crate::roofs::classifier::onnx::OnnxClassifier;
+use crate::roofs::imagery::{Imagery, TileMemo, crop_footprint};
+use crate::roofs::jobs::JobError;
 use citymesh_core::roof_image::{Crop, RoofClass};
 use std::sync::Arc;
 use std::time::Duration;
@@ -35,18 +34,29 @@ impl AdaptPolicy {
     }
 }
 
-/// Crops the examples, fits the head and, when it is fitted and accepted, puts it in use.
-/// Records progress and the outcome in the store; never fails the caller (the outcome is in the
-/// store). Stops (within one crop or one fold's fit) when `stop` is cancelled: by a client, by
-/// losing its lease, at `--adapt-max-s`, or by the server's shutdown.
+/// What an adaptation runs with: its store, the server's policy, the imagery and the shipped
+/// model, and the server's stop (to say in the outcome that a shutdown stopped it).
+pub struct AdaptationRun {
+    pub store: AdaptationStore,
+    pub policy: AdaptPolicy,
+    pub imagery: Option<Arc<Imagery>>,
+    pub base: Option<Arc<OnnxClassifier>>,
+    pub server_stopping: CancellationToken,
+}
+
+/// Crops the examples and fits the head; records progress and the outcome in the store, and
+/// answers the head to put in use when it is fitted and accepted (the caller puts it in use).
+/// Never fails the caller (the outcome is in the store). Stops (within one crop or one fold's
+/// fit) when `stop` is cancelled: by a client, by losing its lease, at `--adapt-max-s`, or by
+/// the server's shutdown.
 pub async fn run_adaptation(
-    jobs: Arc<RoofJobs>,
+    run: AdaptationRun,
     id: String,
     examples: Vec<AdaptExample>,
     stop: CancellationToken,
-) {
-    let store = jobs.adaptations.clone();
-    let policy = jobs.adapt_policy.clone();
+) -> Option<RoofHead> {
+    let store = run.store.clone();
+    let policy = run.policy.clone();
     let keeper = keep_lease(
         store.clone(),
         id.clone(),
@@ -57,12 +67,12 @@ pub async fn run_adaptation(
     // "stopped"; when both are ready, the outcome says why it stopped (the shutdown, a lost lease).
     let outcome = tokio::select! {
         biased;
-        () = stop.cancelled() => Err(AdaptFailure::Failed(stopped_why(&jobs))),
+        () = stop.cancelled() => Err(AdaptFailure::Failed(stopped_why(&run.server_stopping))),
         () = tokio::time::sleep(policy.max_run) => Err(AdaptFailure::Failed(format!(
             "stopped after {} s (--adapt-max-s): adapt on a smaller area",
             policy.max_run.as_secs_f64()
         ))),
-        outcome = adapt(&jobs, &store, &id, examples, &stop) => outcome,
+        outcome = adapt(&run, &store, &id, examples, &stop) => outcome,
     };
     // Ends the lease keeper and any fitting still running on the blocking pool.
     stop.cancel();
@@ -72,30 +82,32 @@ pub async fn run_adaptation(
         Ok(true) => {}
         Ok(false) => {
             tracing::info!(adaptation = %id, "adaptation ended before its outcome (cancelled)");
-            return;
+            return None;
         }
         Err(e) => {
             tracing::warn!(adaptation = %id, error = %e, "cannot store the adaptation's outcome");
-            return;
+            return None;
         }
     }
-    match &outcome {
-        Ok(head) if in_use => match jobs.use_head(head.clone()).await {
-            Ok(()) => tracing::info!(adaptation = %id, head = %head.id(),
-                accuracy = head.report.accuracy, "adapted roof head in use"),
-            Err(e) => tracing::warn!(adaptation = %id, error = %e, "cannot use the adapted head"),
-        },
-        Ok(head) => tracing::info!(adaptation = %id, head = %head.id(),
-            accuracy = head.report.accuracy, shipped = head.report.shipped_accuracy,
-            "adapted roof head not better than the shipped one: not used"),
-        Err(e) => tracing::info!(adaptation = %id, error = %e, "adaptation ended without a head"),
+    match outcome {
+        Ok(head) if in_use => Some(head),
+        Ok(head) => {
+            tracing::info!(adaptation = %id, head = %head.id(),
+                accuracy = head.report.accuracy, shipped = head.report.shipped_accuracy,
+                "adapted roof head not better than the shipped one: not used");
+            None
+        }
+        Err(e) => {
+            tracing::info!(adaptation = %id, error = %e, "adaptation ended without a head");
+            None
+        }
     }
 }
 
 /// Why an adaptation's stop was cancelled, as its outcome says (when not cancelled by a client,
 /// whose cancel is already recorded).
-fn stopped_why(jobs: &RoofJobs) -> String {
-    if jobs.is_stopping() {
+fn stopped_why(server_stopping: &CancellationToken) -> String {
+    if server_stopping.is_cancelled() {
         "stopped by the server's shutdown; ask again".to_owned()
     } else {
         "stopped: its lease was lost or it was cancelled".to_owned()
@@ -146,13 +158,13 @@ impl std::fmt::Display for AdaptFailure {
 }
 
 async fn adapt(
-    jobs: &RoofJobs,
+    run: &AdaptationRun,
     store: &AdaptationStore,
     id: &str,
     examples: Vec<AdaptExample>,
     stop: &CancellationToken,
 ) -> Result<RoofHead, AdaptFailure> {
-    let (Some(imagery), Some(base)) = (jobs.imagery.clone(), jobs.base.clone()) else {
+    let (Some(imagery), Some(base)) = (run.imagery.clone(), run.base.clone()) else {
         return Err(AdaptFailure::Failed(
             "no classifier or no imagery is configured".into(),
         ));

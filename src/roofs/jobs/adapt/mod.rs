@@ -8,7 +8,7 @@
 mod run;
 mod store;
 
-pub use run::{AdaptFailure, AdaptPolicy, Progress, fit_on_imagery, run_adaptation};
+pub use run::{AdaptFailure, AdaptPolicy, AdaptationRun, Progress, fit_on_imagery, run_adaptation};
 pub use store::AdaptationStore;
 
 use super::queue::NewJob;

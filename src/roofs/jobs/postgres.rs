@@ -4,17 +4,17 @@
 //! order of their `osm_id`'s bytes (`COLLATE "C"`), as SQLite orders text, whatever the
 //! database's locale.
 
+use super::prediction_note::{PREDICTION_CHANNEL, PredictionNote};
 use super::queue::{
     BatchCounts, BatchProgress, ClaimedJob, JobError, MAX_ATTEMPTS, NewJob, RoofJobQueue,
     StoredPrediction, footprint_hash, ring_bounds,
 };
-use super::replica_predictions::{PREDICTION_CHANNEL, PredictionNote};
 use super::rows::{
     ENQUEUE_CHUNK, claimed_of_row, empty_states, lease_end, now_ms, prediction_columns,
     prediction_of_row, random_claim, ring_json,
 };
 use super::token::random_token;
-use crate::classifier::Prediction;
+use crate::roofs::classifier::Prediction;
 use citymesh_core::geo::GeoBbox;
 use sqlx::{PgPool, Row};
 use std::collections::BTreeMap;

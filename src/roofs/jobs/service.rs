@@ -1,17 +1,17 @@
 //! The server's roof jobs: the queue on the server's database, the predictions tiles use, and the
 //! workers that run jobs when a classifier and an imagery service are configured.
 
-use super::adapt::{AdaptExample, AdaptPolicy, AdaptationStore, run_adaptation};
+use super::adapt::{AdaptExample, AdaptPolicy, AdaptationRun, AdaptationStore, run_adaptation};
 use super::backend::JobQueue;
 use super::batch_budget::{BatchBudget, BatchLimits};
 use super::index::PredictionIndex;
 use super::queue::{JobError, RoofJobQueue};
 use super::worker::{CurrentModel, RoundReport, SharedOnDone, WorkerConfig, run_worker};
-use crate::classifier::RoofClassifier;
-use crate::classifier::head::{HeadedClassifier, RoofHead};
-use crate::classifier::onnx::OnnxClassifier;
-use crate::imagery::Imagery;
 use crate::metrics::{Metrics, StateLabels};
+use crate::roofs::classifier::RoofClassifier;
+use crate::roofs::classifier::head::{HeadedClassifier, RoofHead};
+use crate::roofs::classifier::onnx::OnnxClassifier;
+use crate::roofs::imagery::Imagery;
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, RwLock};
 use tokio_util::sync::CancellationToken;
@@ -200,9 +200,24 @@ impl RoofJobs {
         if let Ok(mut running) = self.adapting.lock() {
             running.insert(id.clone(), stop.clone());
         }
+        let run = AdaptationRun {
+            store: self.adaptations.clone(),
+            policy: self.adapt_policy.clone(),
+            imagery: self.imagery.clone(),
+            base: self.base.clone(),
+            server_stopping: self.stopping.clone(),
+        };
         let jobs = self.clone();
         self.tasks.spawn(async move {
-            run_adaptation(jobs.clone(), id.clone(), examples, stop).await;
+            if let Some(head) = run_adaptation(run, id.clone(), examples, stop).await {
+                match jobs.use_head(head.clone()).await {
+                    Ok(()) => tracing::info!(adaptation = %id, head = %head.id(),
+                        accuracy = head.report.accuracy, "adapted roof head in use"),
+                    Err(e) => {
+                        tracing::warn!(adaptation = %id, error = %e, "cannot use the adapted head");
+                    }
+                }
+            }
             if let Ok(mut running) = jobs.adapting.lock() {
                 running.remove(&id);
             }
@@ -303,7 +318,7 @@ impl RoofJobs {
                     let classifier = active.classifier.clone()?;
                     let on_done: SharedOnDone = Arc::new(
                         move |job: &super::ClaimedJob,
-                              p: &crate::classifier::Prediction,
+                              p: &crate::roofs::classifier::Prediction,
                               ms: f64| {
                             if job.model_id == active.model_id {
                                 active.index.insert(

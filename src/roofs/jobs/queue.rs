@@ -1,6 +1,6 @@
 //! What a roof job queue does, whatever stores it.
 
-use crate::classifier::Prediction;
+use crate::roofs::classifier::Prediction;
 use citymesh_core::geo::GeoBbox;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;

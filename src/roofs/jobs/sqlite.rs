@@ -9,7 +9,7 @@ use super::rows::{
     prediction_of_row, random_claim, ring_json,
 };
 use super::token::random_token;
-use crate::classifier::Prediction;
+use crate::roofs::classifier::Prediction;
 use citymesh_core::geo::GeoBbox;
 use sqlx::{Row, SqlitePool};
 use std::collections::BTreeMap;

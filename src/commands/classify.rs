@@ -1,10 +1,11 @@
 //! `citymesh classify`: the roofs of OSM buildings from an imagery service, as the server's jobs
 //! run them (same queue, same database), in the foreground with a progress bar.
 
-use super::{Prediction, RoofClassifier, load_from_args};
+use super::load_classifier;
 use crate::cli::ClassifyArgs;
-use crate::jobs::worker::{WorkerConfig, run_round};
-use crate::jobs::{
+use crate::roofs::classifier::{Prediction, RoofClassifier};
+use crate::roofs::jobs::worker::{WorkerConfig, run_round};
+use crate::roofs::jobs::{
     JobQueue, RoofJobQueue, Selection, StoredPrediction, footprint_hash, jobs_in_box,
 };
 use crate::source::read_osm_file;
@@ -37,7 +38,7 @@ pub(super) fn read_area(
 /// Runs the command; returns the summary it prints.
 pub async fn run(args: &ClassifyArgs) -> anyhow::Result<String> {
     let (bbox, records) = read_area(&args.osm, args.bbox.as_deref())?;
-    let classifier: Arc<dyn RoofClassifier> = load_from_args(&args.classifier)?;
+    let classifier: Arc<dyn RoofClassifier> = load_classifier(&args.classifier)?;
     let db = crate::db::Database::Sqlite(crate::db::open(&args.cache_db).await?);
     let imagery = args.imagery.open(&db, None).await?.ok_or_else(|| {
         anyhow::anyhow!("--imagery-url is required: the imagery to classify from")
@@ -156,8 +157,8 @@ pub async fn run(args: &ClassifyArgs) -> anyhow::Result<String> {
 }
 
 /// The box around every job's footprint.
-fn area_of(jobs: &[crate::jobs::NewJob]) -> Option<GeoBbox> {
-    let [w, s, e, n] = crate::jobs::ring_bounds(jobs.iter().flat_map(|j| &j.footprint))?;
+fn area_of(jobs: &[crate::roofs::jobs::NewJob]) -> Option<GeoBbox> {
+    let [w, s, e, n] = crate::roofs::jobs::ring_bounds(jobs.iter().flat_map(|j| &j.footprint))?;
     GeoBbox::new(w, s, e, n).ok()
 }
 

@@ -1,10 +1,10 @@
 //! `citymesh classify-image`: one JSON line per image file with the class probabilities.
 
-use super::input::crop_image;
-use super::labelled::read_limited;
-use super::labelled::{evaluate, read_labels};
-use super::{MODEL_RULE, load_classifier_with_head};
 use crate::cli::ClassifyImageArgs;
+use crate::roofs::classifier::input::crop_image;
+use crate::roofs::classifier::labelled::read_limited;
+use crate::roofs::classifier::labelled::{evaluate, read_labels};
+use crate::roofs::classifier::{MODEL_RULE, load_classifier_with_head};
 use citymesh_core::roof_image::RoofClass;
 use serde_json::json;
 

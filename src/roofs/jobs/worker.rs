@@ -5,8 +5,8 @@
 //! pass), never the others.
 
 use super::queue::{ClaimedJob, JobError, RoofJobQueue};
-use crate::classifier::{Prediction, RoofClassifier, classify_blocking};
-use crate::imagery::{Imagery, TileMemo, crop_footprint, prefetch_tiles};
+use crate::roofs::classifier::{Prediction, RoofClassifier, classify_blocking};
+use crate::roofs::imagery::{Imagery, TileMemo, crop_footprint, prefetch_tiles};
 use citymesh_core::roof_image::Crop;
 use std::sync::Arc;
 use std::time::Duration;

@@ -3,27 +3,13 @@
 //! [`super::PredictionIndex`], so `roofs=classified` tiles use it wherever the job ran. While
 //! the listener is disconnected announcements are lost: each reconnection reloads the index.
 
+use super::prediction_note::{PREDICTION_CHANNEL, PredictionNote};
 use super::service::RoofJobs;
-use crate::classifier::Prediction;
-use serde::{Deserialize, Serialize};
+use crate::roofs::classifier::Prediction;
 use sqlx::PgPool;
 use sqlx::postgres::PgListener;
 use std::sync::Arc;
 use std::time::Duration;
-
-/// The channel predictions are announced on.
-pub const PREDICTION_CHANNEL: &str = "citymesh_prediction";
-
-/// A stored prediction as announced (a few hundred bytes: the footprint stays in the table).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct PredictionNote {
-    pub osm_id: String,
-    pub footprint_hash: String,
-    pub imagery_id: String,
-    pub model_id: String,
-    pub probabilities: [f32; 3],
-    pub work_ms: f64,
-}
 
 /// Listens for predictions stored by any replica until the process ends; returns once
 /// listening.

@@ -13,6 +13,7 @@ mod backend;
 pub mod batch_budget;
 mod index;
 mod postgres;
+mod prediction_note;
 mod queue;
 pub mod replica_predictions;
 mod rows;

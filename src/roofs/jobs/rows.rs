@@ -2,7 +2,7 @@
 //! the rows they read back (the same columns on both backends).
 
 use super::queue::{ClaimedJob, JobError, StoredPrediction};
-use crate::classifier::Prediction;
+use crate::roofs::classifier::Prediction;
 use sqlx::{ColumnIndex, Decode, Row, Type};
 use std::collections::BTreeMap;
 use std::time::Duration;

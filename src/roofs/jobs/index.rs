@@ -3,7 +3,7 @@
 //! current by the workers, so a tile request never queries SQLite for roofs.
 
 use super::queue::{JobError, RoofJobQueue};
-use crate::classifier::Prediction;
+use crate::roofs::classifier::Prediction;
 use std::collections::HashMap;
 use std::sync::RwLock;
 

@@ -5,9 +5,6 @@
 //! and the runtime library that [`runtime`] finds; [`input`] turns any image into the model's
 //! crop by the crop rule; [`training_set`] writes the synthetic training and test sets.
 
-pub mod adapt;
-pub mod classify_area;
-pub mod classify_image;
 pub mod head;
 pub mod input;
 pub mod labelled;
@@ -24,7 +21,7 @@ use std::path::Path;
 use std::sync::Arc;
 
 /// The committed model (training/roof_classifier/MODEL_CARD.md).
-pub static MODEL: &[u8] = include_bytes!("../../training/roof_classifier/roof_classifier.onnx");
+pub static MODEL: &[u8] = include_bytes!("../../../training/roof_classifier/roof_classifier.onnx");
 
 /// The crop rule the committed model was trained with.
 pub const MODEL_RULE: CropRule = CropRule::MODEL;
@@ -127,18 +124,6 @@ pub fn load_classifier_with_head(
         )?)),
         None => Ok(base),
     }
-}
-
-/// The ONNX classifier the command-line options name (`--onnxruntime-lib`, `--roof-model`,
-/// `--roof-passes`).
-pub fn load_from_args(
-    args: &crate::cli::ClassifierArgs,
-) -> Result<Arc<onnx::OnnxClassifier>, ClassifierError> {
-    load_onnx(
-        args.onnxruntime_lib.as_deref(),
-        args.roof_model.as_deref(),
-        args.roof_passes,
-    )
 }
 
 /// The ONNX classifier itself (for embeddings).

@@ -5,8 +5,8 @@ use super::queue::{
     BatchCounts, BatchProgress, ClaimedJob, JobError, NewJob, RoofJobQueue, StoredPrediction,
 };
 use super::sqlite::SqliteJobQueue;
-use crate::classifier::Prediction;
 use crate::db::Database;
+use crate::roofs::classifier::Prediction;
 use citymesh_core::geo::GeoBbox;
 use std::collections::BTreeMap;
 use std::time::Duration;

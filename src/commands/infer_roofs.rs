@@ -1,7 +1,7 @@
 //! `citymesh infer-roofs`: the roof prior of OSM files, written as GeoJSON.
 
-use super::{describe, prediction_properties};
 use crate::cli::InferRoofsArgs;
+use crate::roofs::prior::{describe, prediction_properties};
 use crate::source::read_osm_file;
 use anyhow::Context;
 use citymesh_core::geo::GeoBbox;

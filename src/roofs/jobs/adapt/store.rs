@@ -3,10 +3,10 @@
 
 use super::run::AdaptFailure;
 use super::{AdaptationStatus, ClassCounts, Lease};
-use crate::classifier::head::RoofHead;
 use crate::db::{Database, on_pool};
-use crate::jobs::JobError;
-use crate::jobs::rows::now_ms;
+use crate::roofs::classifier::head::RoofHead;
+use crate::roofs::jobs::JobError;
+use crate::roofs::jobs::rows::now_ms;
 use sqlx::{ColumnIndex, Decode, Row, Type};
 
 /// The adaptations in the server's database.

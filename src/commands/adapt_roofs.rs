@@ -1,12 +1,13 @@
-//! `citymesh adapt-roofs`: fits a head of the roof classifier ([`super::head`]) on labelled crops
+//! `citymesh adapt-roofs`: fits a head of the roof classifier ([`crate::roofs::classifier::head`]) on labelled crops
 //! of the user's imagery, or on the buildings of OSM files whose roofs are tagged, cropped from an
 //! imagery service as the server crops them; writes it, with its cross-validated report.
 
-use super::head::{AdaptError, fit_head};
-use super::labelled::read_labels;
-use super::{MODEL_RULE, RoofClassifier as _, load_from_args};
+use super::load_classifier;
 use crate::cli::AdaptRoofsArgs;
-use crate::jobs::adapt::{
+use crate::roofs::classifier::head::{AdaptError, fit_head};
+use crate::roofs::classifier::labelled::read_labels;
+use crate::roofs::classifier::{MODEL_RULE, RoofClassifier as _};
+use crate::roofs::jobs::adapt::{
     AdaptationStore, Lease, Progress, class_counts, fit_on_imagery, tagged_examples,
 };
 use citymesh_core::roof_image::RoofClass;
@@ -24,7 +25,7 @@ pub fn run_labels(args: &AdaptRoofsArgs) -> anyhow::Result<bool> {
         .into_iter()
         .filter(|r| args.split.is_none() || r.split == args.split)
         .collect();
-    let classifier = load_from_args(&args.classifier)?;
+    let classifier = load_classifier(&args.classifier)?;
     let started = std::time::Instant::now();
     let mut crops = Vec::with_capacity(rows.len());
     let mut failed = 0usize;
@@ -54,16 +55,16 @@ pub fn run_labels(args: &AdaptRoofsArgs) -> anyhow::Result<bool> {
 /// to `--out` and stores it in `--cache-db` for that imagery. `Ok(false)` when too few examples
 /// could be cropped.
 pub async fn run_osm(args: &AdaptRoofsArgs) -> anyhow::Result<bool> {
-    let (bbox, records) = super::classify_area::read_area(&args.osm, args.bbox.as_deref())?;
+    let (bbox, records) = super::classify::read_area(&args.osm, args.bbox.as_deref())?;
     let examples = tagged_examples(&records, bbox.as_ref());
-    let classifier = load_from_args(&args.classifier)?;
+    let classifier = load_classifier(&args.classifier)?;
     let db = crate::db::Database::Sqlite(crate::db::open(&args.cache_db).await?);
     let imagery = args.imagery.open(&db, None).await?.ok_or_else(|| {
         anyhow::anyhow!("--imagery-url is required with --osm: the imagery to adapt to")
     })?;
     let counts = class_counts(&examples);
     let store = AdaptationStore::new(db);
-    let id = crate::jobs::random_token()?;
+    let id = crate::roofs::jobs::random_token()?;
     let area = bbox.map_or_else(|| "files".to_owned(), |b| b.to_string());
     store
         .create(
@@ -120,7 +121,7 @@ pub async fn run_osm(args: &AdaptRoofsArgs) -> anyhow::Result<bool> {
 
 fn print_report(
     args: &AdaptRoofsArgs,
-    head: &super::head::RoofHead,
+    head: &crate::roofs::classifier::head::RoofHead,
     failed: usize,
     started: std::time::Instant,
 ) -> anyhow::Result<()> {
@@ -137,7 +138,7 @@ fn print_report(
                 .map(|c| (c.name().to_owned(), json!(r.examples[c.index()])))
                 .collect::<serde_json::Map<_, _>>(),
             "skipped": failed,
-            "cross_validation": {"folds": super::head::FOLDS, "accuracy": r.accuracy, "confusion": r.confusion},
+            "cross_validation": {"folds": crate::roofs::classifier::head::FOLDS, "accuracy": r.accuracy, "confusion": r.confusion},
             "shipped_head_accuracy": r.shipped_accuracy,
             "threshold": r.threshold,
             "seconds": started.elapsed().as_secs_f64(),

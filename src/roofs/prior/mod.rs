@@ -1,10 +1,6 @@
 //! The roof prior around the core's learner (`citymesh_core::roof_prior`, docs/extensions.md
-//! section 4): fitted per area of the source's data, kept in memory, and the command that
-//! writes its predictions ([`infer_file`]).
-
-pub mod infer_file;
-
-pub use infer_file::infer_roofs;
+//! section 4): fitted per area of the source's data and kept in memory; its predictions as
+//! GeoJSON properties and its report as text (`citymesh infer-roofs` writes both).
 
 use citymesh_core::osm::BuildingRecord;
 use citymesh_core::roof_image::RoofClass;

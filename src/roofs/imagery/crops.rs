@@ -3,8 +3,8 @@
 //! [`prefetch_tiles`]), stitched and cut by the crop rule.
 
 use super::{Imagery, ImageryError};
-use crate::classifier::MODEL_RULE;
 use citymesh_core::geo::TileCoord;
+use citymesh_core::roof_image::CropRule;
 use citymesh_core::roof_image::mosaic::FootprintCrop;
 use citymesh_core::roof_image::{Crop, Image};
 use std::collections::HashMap;
@@ -32,7 +32,7 @@ const PREFETCH_AT_ONCE: usize = 16;
 /// The tiles a footprint's crop needs, or `None` when it has no crop (the crop says why).
 fn tiles_needed(footprint: &[[f64; 2]], imagery: &Imagery) -> Option<Vec<TileCoord>> {
     let spec = imagery.spec();
-    let crop = FootprintCrop::new(footprint, MODEL_RULE)?;
+    let crop = FootprintCrop::new(footprint, CropRule::MODEL)?;
     let range = crop.tiles(crop.zoom(spec.tile_size, spec.max_zoom))?;
     (range.len() <= MAX_TILES_PER_BUILDING).then(|| range.tiles().collect())
 }
@@ -71,7 +71,7 @@ pub async fn crop_footprint(
 ) -> Result<Crop, CropFailure> {
     let fail = |reason: String, retry| CropFailure { reason, retry };
     let spec = imagery.spec();
-    let crop = FootprintCrop::new(footprint, MODEL_RULE)
+    let crop = FootprintCrop::new(footprint, CropRule::MODEL)
         .ok_or_else(|| fail("too_small: the footprint has no extent".into(), false))?;
     let zoom = crop.zoom(spec.tile_size, spec.max_zoom);
     let range = crop

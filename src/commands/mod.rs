@@ -1,0 +1,189 @@
+//! The commands' bodies, one file each; `crate::cli` holds their options. Each reads its
+//! options, calls the library (server, sources, roofs, pipeline) and reports.
+
+pub mod adapt_roofs;
+pub mod classify;
+pub mod classify_image;
+pub mod export;
+pub mod import;
+pub mod infer_roofs;
+pub mod scene;
+pub mod serve;
+
+use crate::cli::Command;
+use crate::roofs::classifier::{ClassifierError, load_onnx, onnx::OnnxClassifier};
+use std::sync::Arc;
+
+/// The ONNX classifier the command-line options name (`--onnxruntime-lib`, `--roof-model`,
+/// `--roof-passes`).
+pub fn load_classifier(
+    args: &crate::cli::ClassifierArgs,
+) -> Result<Arc<OnnxClassifier>, ClassifierError> {
+    load_onnx(
+        args.onnxruntime_lib.as_deref(),
+        args.roof_model.as_deref(),
+        args.roof_passes,
+    )
+}
+
+/// Runs `command`: on a multi-threaded runtime when it serves or waits on the network or the
+/// database, on the calling thread when it only computes and writes files.
+pub fn run(command: Command) -> anyhow::Result<()> {
+    match command {
+        // Serving and the commands that talk to the database or the network need the runtime;
+        // batch commands run on this thread and start none (it shows in whole-process timings).
+        command @ (Command::Serve(_)
+        | Command::Import(_)
+        | Command::Classify(_)
+        | Command::Export(_)) => runtime(command),
+        Command::AdaptRoofs(args) if args.labels.is_none() => runtime(Command::AdaptRoofs(args)),
+        command => run_batch(command),
+    }
+}
+
+/// Runs `command` on a multi-threaded runtime.
+fn runtime(command: Command) -> anyhow::Result<()> {
+    tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()?
+        .block_on(run_async(command))
+}
+
+/// The commands that serve or wait on the network and the database (on the runtime `main`
+/// starts).
+async fn run_async(command: Command) -> anyhow::Result<()> {
+    match command {
+        Command::Serve(args) => serve::run(*args).await,
+        Command::Import(args) => {
+            let db = args.database.open().await?;
+            let report = import::import_into(&args.files, &db, args.quiet).await?;
+            println!(
+                "imported {} buildings ({} skipped) into {} data tiles ({} changed; {} generated tiles dropped) in {}",
+                report.buildings,
+                report.skipped,
+                report.data_tiles,
+                report.changed_data_tiles,
+                report.tiles_invalidated,
+                args.database.describe()
+            );
+            // Which buildings were left out, and why (a building over 2 km, a node out of
+            // range, missing nodes, ...), the first hundred by id.
+            const SHOWN: usize = 100;
+            for (id, why) in report.skips.iter().take(SHOWN) {
+                eprintln!("skipped {id}: {why}");
+            }
+            if report.skips.len() > SHOWN {
+                eprintln!("... and {} more skipped", report.skips.len() - SHOWN);
+            }
+            Ok(())
+        }
+        Command::Export(args) => {
+            let state = crate::server::build_state(&args.serve).await?;
+            export::run(&state, &args).await?;
+            Ok(())
+        }
+        Command::Classify(args) => {
+            let summary = classify::run(&args).await?;
+            println!("{summary}");
+            Ok(())
+        }
+        Command::AdaptRoofs(args) if args.labels.is_none() => {
+            if adapt_roofs::run_osm(&args).await? {
+                Ok(())
+            } else {
+                std::process::exit(1)
+            }
+        }
+        command => run_batch(command),
+    }
+}
+
+/// The commands that only compute and write files, on the calling thread.
+fn run_batch(command: Command) -> anyhow::Result<()> {
+    match command {
+        Command::Scene(args) => {
+            let report = scene::export_scene(&args)?;
+            eprintln!(
+                "{} buildings ({} skipped), {} bytes, generated in {:.1} ms",
+                report.buildings, report.skipped, report.bytes, report.generation_ms
+            );
+            Ok(())
+        }
+        Command::InferRoofs(args) => {
+            let report = infer_roofs::infer_roofs(&args)?;
+            println!("{report}");
+            Ok(())
+        }
+        Command::Openapi => {
+            println!("{}", crate::routes::openapi_json());
+            Ok(())
+        }
+        Command::RenderRoofs(args) => {
+            let palette = citymesh_core::roof_image::synthetic::Palette::from_name(&args.palette)
+                .ok_or_else(|| {
+                anyhow::anyhow!(
+                    "--palette must be training or holdout, not {:?}",
+                    args.palette
+                )
+            })?;
+            let spec = crate::roofs::classifier::training_set::TrainingSetSpec {
+                osm: args.osm,
+                procedural_seeds: args.procedural,
+                count: args.count,
+                seed: args.seed,
+                palette,
+                out: args.out,
+            };
+            let report = crate::roofs::classifier::training_set::render_training_set(&spec)?;
+            println!(
+                "wrote {} crops (flat {}, gabled {}, hipped {}; {} could not be built) to {}",
+                report.written,
+                report.per_class[0],
+                report.per_class[1],
+                report.per_class[2],
+                report.failed,
+                spec.out.display()
+            );
+            Ok(())
+        }
+        Command::CropLabelled(args) => {
+            let labels = crate::roofs::classifier::labelled::read_labels(&args.labels)?;
+            let report = crate::roofs::classifier::training_set::write_labelled_set(
+                &labels,
+                args.split.as_deref(),
+                &args.out,
+            )?;
+            println!(
+                "wrote {} crops (flat {}, gabled {}, hipped {}; {} could not be cropped) to {}",
+                report.written,
+                report.per_class[0],
+                report.per_class[1],
+                report.per_class[2],
+                report.failed,
+                args.out.display()
+            );
+            Ok(())
+        }
+        Command::AdaptRoofs(args) if args.labels.is_some() => {
+            if adapt_roofs::run_labels(&args)? {
+                Ok(())
+            } else {
+                std::process::exit(1)
+            }
+        }
+        Command::ClassifyImage(args) => {
+            if classify_image::run(&args)? {
+                Ok(())
+            } else {
+                std::process::exit(1)
+            }
+        }
+        Command::Serve(_)
+        | Command::Import(_)
+        | Command::Classify(_)
+        | Command::Export(_)
+        | Command::AdaptRoofs(_) => {
+            anyhow::bail!("this command needs the async runtime (main starts it)")
+        }
+    }
+}
