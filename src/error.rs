@@ -262,3 +262,23 @@ impl From<crate::roofs::jobs::JobError> for AppError {
         }
     }
 }
+
+impl From<crate::pipeline::PipelineError> for AppError {
+    fn from(e: crate::pipeline::PipelineError) -> Self {
+        use crate::pipeline::PipelineError as P;
+        let detail = e.to_string();
+        let unavailable = |code: &'static str, retry_after_secs: u64| AppError::Unavailable {
+            code,
+            detail: detail.clone(),
+            retry_after_secs,
+        };
+        match e {
+            P::InvalidArea(_) => AppError::bad_request("invalid_tile", detail),
+            P::TooComplex { .. } => AppError::bad_request("area_too_complex", detail),
+            P::Timeout(_) | P::MeasureTooLong { .. } => unavailable("timeout", 5),
+            P::Busy => unavailable("busy", 1),
+            P::Abandoned => unavailable("cancelled", 1),
+            P::ShuttingDown => unavailable("shutting_down", 5),
+        }
+    }
+}

@@ -3,12 +3,8 @@
 //! request, and many counts bumped from every core cost more than the rest of a cached tile).
 
 use crate::cache::TileCache;
-use crate::dem::DemStore;
-use crate::metrics::Metrics;
-use crate::source::BuildingSource;
 use std::sync::Arc;
 use std::time::Duration;
-use tokio::sync::Semaphore;
 
 /// Limits that protect the server from requests it should refuse.
 #[derive(Debug, Clone, Copy)]
@@ -50,14 +46,10 @@ impl std::ops::Deref for AppState {
 pub struct ServerState {
     /// Where data tiles, generated tiles, jobs and predictions are kept.
     pub database: crate::db::Database,
-    pub dem: Arc<DemStore>,
-    pub source: Arc<dyn BuildingSource>,
     pub tiles: Arc<TileCache>,
-    pub metrics: Arc<Metrics>,
-    /// Generations running at once at most: a burst of cold tiles cannot starve cached ones,
-    /// which never wait for a slot.
-    pub generations: Arc<Semaphore>,
-    pub limits: Limits,
+    /// Generation and what it needs: source, DEM, slots, limits, metrics, roof settings,
+    /// predictions and priors (also what the other handlers read those from).
+    pub generator: crate::pipeline::Generator,
     /// Largest upload accepted, bytes.
     pub max_upload_bytes: usize,
     /// Most features and positions an uploaded GeoJSON may have.
@@ -68,35 +60,25 @@ pub struct ServerState {
     pub assets_dir: std::path::PathBuf,
     /// The roof-shape classifier, when `--roof-classifier` loaded it.
     pub classifier: Option<Arc<dyn crate::roofs::classifier::RoofClassifier>>,
-    /// Roof jobs, their workers, and the predictions `roofs=classified` uses.
-    pub roofs: Arc<crate::roofs::jobs::RoofJobs>,
-    /// The roof priors learned from each area's tags (`roofs=inferred`).
-    pub priors: Arc<crate::cache::RoofPriors>,
-    /// Cancelled when the server shuts down: long work (adaptations, tree measurements) stops.
-    pub stopping: tokio_util::sync::CancellationToken,
     /// Origins whose pages may change state (`--cors-origin`), besides the server's own.
     pub cors_origins: Arc<Vec<String>>,
     /// What the memory caches may hold (`--memory-mb`).
     pub memory_budget: crate::cache::MemoryBudget,
-    /// The ground a building's `height` is counted from (`--height-base`).
-    pub height_base: citymesh_core::building::HeightBase,
-    /// How hipped, gabled and pyramidal roofs are laid over footprints (`--roof-method`).
-    pub roof_method: citymesh_core::building::RoofMethod,
 }
 
 impl ServerState {
     /// Bytes each memory cache weighs now, by cache name.
     pub async fn memory_use(&self) -> Vec<(&'static str, u64)> {
         let mut out: Vec<(&'static str, u64)> = self.tiles.memory_use().await.to_vec();
-        let dem = self.dem.clone();
+        let dem = self.generator.dem.clone();
         out.push((
             "dem",
             tokio::task::spawn_blocking(move || dem.memory_use())
                 .await
                 .unwrap_or(0),
         ));
-        out.extend(self.source.memory_use().await);
-        out.push(("roof_priors", self.priors.weighted_size().await));
+        out.extend(self.generator.source.memory_use().await);
+        out.push(("roof_priors", self.generator.priors.weighted_size().await));
         out
     }
 }

@@ -20,21 +20,21 @@ pub async fn run(args: ServeArgs) -> anyhow::Result<()> {
         .init();
 
     let state = build_state(&args).await?;
-    let workers = state.roofs.spawn_workers(
+    let workers = state.generator.roofs.spawn_workers(
         args.classify_workers,
         crate::roofs::jobs::worker::WorkerConfig {
             lease: Duration::from_secs_f64(args.classify_lease_s.clamp(1.0, 86_400.0)),
             ..Default::default()
         },
     );
-    match state.roofs.why_not_running() {
+    match state.generator.roofs.why_not_running() {
         None => tracing::info!(
             workers = workers.len(),
             "roof classification workers started"
         ),
         Some(why) => tracing::info!("roof jobs are queued but not run here: {why}"),
     }
-    if state.dem.file_count() == 0 {
+    if state.generator.dem.file_count() == 0 {
         tracing::warn!(dir = %args.dem_dir.display(), "no SRTM files: the ground is flat at 0 m (pass --dem-dir)");
     }
     let listener = tokio::net::TcpListener::bind(args.listen)
@@ -61,8 +61,8 @@ pub async fn run(args: ServeArgs) -> anyhow::Result<()> {
         idle_timeout: Duration::from_secs_f64(args.idle_timeout_s),
     };
     let tiles = state.tiles.clone();
-    let roofs = state.roofs.clone();
-    let stopping = state.stopping.clone();
+    let roofs = state.generator.roofs.clone();
+    let stopping = state.generator.stopping.clone();
     let signal = async move {
         shutdown_signal().await;
         // Long work stops now; requests in flight finish.

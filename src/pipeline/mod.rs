@@ -6,12 +6,16 @@
 //! ([`tiles3d`]). It knows nothing of HTTP headers (`crate::routes` formats them) or of caching
 //! (the routes ask `crate::cache` first and hand this pipeline to it on a miss).
 
+mod error;
+mod generator;
 mod limits;
 mod roofs;
 mod scene;
 mod tiles3d;
 
 pub use crate::generation_stats::GenerationStats;
+pub use error::PipelineError;
+pub use generator::{Generator, GeneratorParts};
 pub use limits::{run_blocking, within_timeout};
 pub use roofs::{
     ClassifiedRoofs, InferredFigures, InferredRoofs, PriorFigures, RoofFigures, RoofsParam,

@@ -1,10 +1,11 @@
 //! Scenes: an area's buildings and terrain through the core generator, on the blocking pool.
 
+use super::Generator;
 use super::limits::{generation_slot, within_timeout};
 use crate::error::AppError;
 use crate::generation_stats::GenerationStats;
+use crate::pipeline::PipelineError;
 use crate::source::AreaBuildings;
-use crate::state::AppState;
 use bytes::Bytes;
 use citymesh_core::building::HeightBase;
 use citymesh_core::building::set::BuildingSet;
@@ -48,22 +49,29 @@ pub enum Buildings {
 /// `roofs` gives shapes to buildings without a `roof:shape` tag (classified roofs); `mesh` says
 /// how the GLB stores vertices and where heights are counted from.
 pub async fn generate(
-    state: &AppState,
+    generator: &Generator,
     area: SceneArea,
     buildings: Buildings,
     roofs: Option<Arc<RoofChoice>>,
     mesh: MeshOptions,
 ) -> Result<Generated, AppError> {
-    within_timeout(state, generate_within(state, area, buildings, roofs, mesh)).await
+    within_timeout(
+        generator,
+        generate_within(generator, area, buildings, roofs, mesh),
+    )
+    .await
 }
 
 /// The source's buildings of an area, gathered under the request timeout (which may ask
 /// upstream): what a cached tile is generated from, gathered before its generation turn.
-pub async fn gather(state: &AppState, area: SceneArea) -> Result<AreaBuildings, AppError> {
+pub async fn gather(generator: &Generator, area: SceneArea) -> Result<AreaBuildings, AppError> {
     let bbox = area
         .bbox()
-        .map_err(|e| AppError::bad_request("invalid_tile", e.to_string()))?;
-    within_timeout(state, async { Ok(state.source.buildings(&bbox).await?) }).await
+        .map_err(|e| PipelineError::InvalidArea(e.to_string()))?;
+    within_timeout(generator, async {
+        Ok(generator.source.buildings(&bbox).await?)
+    })
+    .await
 }
 
 /// How a generated mesh is made beyond its area and buildings.
@@ -76,16 +84,16 @@ pub struct MeshOptions {
 
 impl MeshOptions {
     /// `encoding`, with heights as the server counts them (`--height-base`).
-    pub fn new(state: &AppState, encoding: Encoding) -> Self {
+    pub fn new(generator: &Generator, encoding: Encoding) -> Self {
         Self {
             encoding,
-            heights: state.height_base,
+            heights: generator.height_base,
         }
     }
 }
 
 async fn generate_within(
-    state: &AppState,
+    generator: &Generator,
     area: SceneArea,
     buildings: Buildings,
     roofs: Option<Arc<RoofChoice>>,
@@ -93,16 +101,16 @@ async fn generate_within(
 ) -> Result<Generated, AppError> {
     let bbox = area
         .bbox()
-        .map_err(|e| AppError::bad_request("invalid_tile", e.to_string()))?;
+        .map_err(|e| PipelineError::InvalidArea(e.to_string()))?;
     let buildings = match buildings {
-        Buildings::FromSource => state.source.buildings(&bbox).await?,
+        Buildings::FromSource => generator.source.buildings(&bbox).await?,
         Buildings::Given(set) => AreaBuildings::given(set),
         Buildings::Loaded(loaded) => loaded,
     };
-    let slot = generation_slot(state).await?;
-    let dem = state.dem.clone();
-    let roof_method = state.roof_method;
-    let max_nodes = state.limits.max_scene_nodes;
+    let slot = generation_slot(generator).await?;
+    let dem = generator.dem.clone();
+    let roof_method = generator.roof_method;
+    let max_nodes = generator.limits.max_scene_nodes;
     // Set when this request is dropped (the client left, or the timeout fired): the blocking
     // work then stops before its next group of buildings and frees its slot.
     let gone = Arc::new(AtomicBool::new(false));
@@ -113,7 +121,7 @@ async fn generate_within(
         let started = Instant::now();
         let mut request: SceneRequest<'_> = area
             .request(&buildings.set)
-            .map_err(|e| AppError::bad_request("invalid_tile", e.to_string()))?
+            .map_err(|e| PipelineError::InvalidArea(e.to_string()))?
             .with_encoding(mesh.encoding)
             .with_heights(mesh.heights)
             .with_roof_method(roof_method);
@@ -122,23 +130,16 @@ async fn generate_within(
         }
         let nodes = request.outline_nodes();
         if nodes > max_nodes {
-            return Err(AppError::bad_request(
-                "area_too_complex",
-                format!(
-                    "the buildings here have {nodes} outline nodes, more than the {max_nodes} one \
-                     request may generate (--max-scene-nodes): ask a smaller box or a deeper tile"
-                ),
-            ));
+            return Err(AppError::from(PipelineError::TooComplex {
+                nodes,
+                max: max_nodes,
+            }));
         }
         // Whole buildings may reach past the box: their ground must be loaded too.
         let lookup = dem.lookup(&request.terrain_bbox());
         let stop = || gone.load(Ordering::Relaxed);
         let Some(mut output) = request.generate_until(&lookup.model, &stop) else {
-            return Err(AppError::Unavailable {
-                code: "cancelled",
-                detail: "the request was abandoned before its scene was finished".to_owned(),
-                retry_after_secs: 1,
-            });
+            return Err(AppError::from(PipelineError::Abandoned));
         };
         // What the data had but could not be built, and what was built with less: repairs of
         // the records this scene used (drawn, or drawn through their parts).
@@ -172,8 +173,8 @@ async fn generate_within(
         })
     })
     .await??;
-    state.metrics.generations.inc();
-    state
+    generator.metrics.generations.inc();
+    generator
         .metrics
         .generation_seconds
         .observe(generated.stats.generation_ms / 1e3);

@@ -2,9 +2,9 @@
 //! the tileset) and its binary subtree. Content tiles go through [`super::generate`].
 
 use super::limits::{generation_slot, within_timeout};
-use crate::cache::Stopped;
+use super::{Generator, PipelineError};
+use crate::cache::{RegionCache, Stopped};
 use crate::error::AppError;
-use crate::state::AppState;
 use bytes::Bytes;
 use citymesh_core::building::roof::RoofShape;
 use citymesh_core::building::set::BuildingSet;
@@ -17,35 +17,41 @@ use tokio_util::sync::CancellationToken;
 /// The binary subtree at the root of the tree over `root` (the tree's only one): every tile
 /// exists, every leaf has content (ground where it holds no building), and each tile's region
 /// is its tile metadata.
-pub async fn subtree(state: &AppState, root: GeoBbox, pitched: bool) -> Result<Bytes, AppError> {
-    let regions = tile_regions(state, root, pitched).await?;
+pub async fn subtree(
+    generator: &Generator,
+    kept: &RegionCache<AppError>,
+    root: GeoBbox,
+    pitched: bool,
+) -> Result<Bytes, AppError> {
+    let regions = tile_regions(generator, kept, root, pitched).await?;
     Ok(Bytes::from(root_subtree(&regions)))
 }
 
-/// The region of every tile of the tree over `root`, measured on its content (kept per region,
-/// as measuring generates the whole tree). With `pitched` (content with `roofs=classified` or
+/// The region of every tile of the tree over `root`, measured on its content (kept per region in
+/// `kept`, as measuring generates the whole tree). With `pitched` (content with `roofs=classified` or
 /// `roofs=inferred`), untagged roofs may become gabled or hipped: the regions hold those roofs
 /// too.
 pub async fn tile_regions(
-    state: &AppState,
+    generator: &Generator,
+    kept: &RegionCache<AppError>,
     root: GeoBbox,
     pitched: bool,
 ) -> Result<Arc<TileRegions>, AppError> {
     let key = (root.to_string(), pitched);
-    let max_work = state
+    let max_work = generator
         .limits
         .request_timeout
         .saturating_mul(MEASURE_TIMEOUTS);
     let measure = |stop: CancellationToken| {
-        let state = state.clone();
+        let generator = generator.clone();
         async move {
-            let buildings = state.source.buildings(&root).await?;
-            let dem = state.dem.clone();
+            let buildings = generator.source.buildings(&root).await?;
+            let dem = generator.dem.clone();
             let rules = citymesh_core::building::BuildingRules {
-                heights: state.height_base,
-                roof_method: state.roof_method,
+                heights: generator.height_base,
+                roof_method: generator.roof_method,
             };
-            let slot = generation_slot(&state).await?;
+            let slot = generation_slot(&generator).await?;
             tokio::task::spawn_blocking(move || {
                 let variants = if pitched {
                     roof_variants(&buildings.set)
@@ -71,14 +77,8 @@ pub async fn tile_regions(
     };
     // The request waits at most its timeout; the measurement goes on (and is kept) without it.
     within_timeout(
-        state,
-        state.tiles.regions.get_or_measure(
-            key,
-            measure,
-            &state.stopping,
-            max_work,
-            measure_stopped,
-        ),
+        generator,
+        kept.get_or_measure(key, measure, &generator.stopping, max_work, measure_stopped),
     )
     .await
 }
@@ -91,20 +91,12 @@ pub const MEASURE_TIMEOUTS: u32 = 4;
 /// A measurement that stopped, as the client sees it.
 fn measure_stopped(why: Stopped) -> AppError {
     match why {
-        Stopped::Shutdown => AppError::Unavailable {
-            code: "shutting_down",
-            detail: "the server is shutting down: try again in a moment".to_owned(),
-            retry_after_secs: 5,
-        },
-        Stopped::TooLong(limit) => AppError::Unavailable {
-            code: "timeout",
-            detail: format!(
-                "measuring this tree's tiles took longer than {} s ({MEASURE_TIMEOUTS} x \
-                 --request-timeout-s): ask for a smaller bbox",
-                limit.as_secs_f64()
-            ),
-            retry_after_secs: 5,
-        },
+        Stopped::Shutdown => PipelineError::ShuttingDown.into(),
+        Stopped::TooLong(limit) => PipelineError::MeasureTooLong {
+            limit,
+            timeouts: MEASURE_TIMEOUTS,
+        }
+        .into(),
     }
 }
 

@@ -241,10 +241,10 @@ fn batch_id(path: Result<Path<String>, PathRejection>) -> Result<String, AppErro
 /// A batch that exists and was neither deleted nor expired (either is gone for clients; its
 /// finished jobs keep their predictions).
 async fn live_batch(state: &AppState, id: &str) -> Result<BatchProgress, AppError> {
-    let kept = state.roofs.batches.limits.ttl.as_secs_f64();
-    match state.roofs.queue.progress(id).await? {
+    let kept = state.generator.roofs.batches.limits.ttl.as_secs_f64();
+    match state.generator.roofs.queue.progress(id).await? {
         Some(p) if !p.cancelled => Ok(p),
-        Some(_) if state.roofs.batches.is_expired(id).await? => Err(AppError::not_found(
+        Some(_) if state.generator.roofs.batches.is_expired(id).await? => Err(AppError::not_found(
             "no_such_batch",
             format!(
                 "batch {id} expired: finished batches are kept {kept} s after their last job ended (its predictions stay: GET /classify/predictions)"
@@ -325,14 +325,14 @@ pub async fn post_classify(
             }
         }
     };
-    let roofs = state.roofs.clone();
+    let roofs = state.generator.roofs.clone();
     if let Some(why) = roofs.why_not_running() {
         return Err(classification_unavailable(why));
     }
-    let bbox = parse_bbox(Some(&request.bbox.text()), &state.limits)?;
+    let bbox = parse_bbox(Some(&request.bbox.text()), &state.generator.limits)?;
     // Gathering the buildings may ask upstream: under the request timeout, as a scene is.
-    let buildings = within_timeout(&state, async {
-        Ok::<_, AppError>(state.source.buildings(&bbox).await?)
+    let buildings = within_timeout(&state.generator, async {
+        Ok::<_, AppError>(state.generator.source.buildings(&bbox).await?)
     })
     .await?;
     let selection = if request.include_tagged {
@@ -416,7 +416,7 @@ pub async fn get_batch(
             100.0 * ended as f64 / total as f64
         },
         progress,
-        imagery_attribution: state.roofs.imagery_attribution.clone(),
+        imagery_attribution: state.generator.roofs.imagery_attribution.clone(),
     }))
 }
 
@@ -437,13 +437,14 @@ pub async fn delete_batch(
     let id = batch_id(path)?;
     live_batch(&state, &id).await?;
     let cancelled = state
+        .generator
         .roofs
         .queue
         .cancel(&id)
         .await?
         .ok_or_else(|| AppError::not_found("no_such_batch", format!("no batch {id}")))?;
-    state.roofs.batches.release(&id).await?;
-    state.roofs.refresh_state_metrics().await;
+    state.generator.roofs.batches.release(&id).await?;
+    state.generator.roofs.refresh_state_metrics().await;
     Ok(Json(BatchCancelled { id, cancelled }))
 }
 
@@ -464,8 +465,8 @@ pub async fn predictions(
     query: Result<Query<PredictionsQuery>, QueryRejection>,
 ) -> Result<Response, AppError> {
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
-    let bbox = parse_bbox(query.bbox.as_deref(), &state.limits)?;
-    let roofs = &state.roofs;
+    let bbox = parse_bbox(query.bbox.as_deref(), &state.generator.limits)?;
+    let roofs = &state.generator.roofs;
     let threshold = roofs.active().threshold;
     let stored = roofs.queue.predictions(&bbox, MAX_PREDICTIONS).await?;
     let features: Vec<serde_json::Value> = stored

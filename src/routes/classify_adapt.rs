@@ -85,7 +85,7 @@ pub async fn post_adapt(
             "send JSON like {\"bbox\": \"8.396,49.052,8.403,49.058\"}",
         )
     })?;
-    let roofs = state.roofs.clone();
+    let roofs = state.generator.roofs.clone();
     if let Some(why) = roofs.why_not_running() {
         return Err(classification_unavailable(why));
     }
@@ -95,7 +95,7 @@ pub async fn post_adapt(
         ));
     };
     let model_id = crate::roofs::classifier::RoofClassifier::model_id(base.as_ref()).to_owned();
-    let bbox = parse_bbox(Some(&request.bbox.text()), &state.limits)?;
+    let bbox = parse_bbox(Some(&request.bbox.text()), &state.generator.limits)?;
     // The check that none runs and the start are one step: of concurrent requests, one starts
     // and the others get 409 before gathering anything.
     let id = crate::roofs::jobs::random_token()?;
@@ -166,8 +166,8 @@ async fn gather_examples(
     state: &AppState,
     bbox: &citymesh_core::geo::GeoBbox,
 ) -> Result<Vec<AdaptExample>, AppError> {
-    let buildings = within_timeout(state, async {
-        Ok::<_, AppError>(state.source.buildings(bbox).await?)
+    let buildings = within_timeout(&state.generator, async {
+        Ok::<_, AppError>(state.generator.source.buildings(bbox).await?)
     })
     .await?;
     Ok(tagged_examples(buildings.set.records(), Some(bbox)))
@@ -215,7 +215,7 @@ pub async fn delete_adapt(
     path: Result<Path<String>, PathRejection>,
 ) -> Result<Json<AdaptationEnded>, AppError> {
     let id = adaptation_id(path)?;
-    let roofs = &state.roofs;
+    let roofs = &state.generator.roofs;
     let before =
         roofs.adaptations.cancel(&id).await?.ok_or_else(|| {
             AppError::not_found("no_such_adaptation", format!("no adaptation {id}"))
@@ -264,7 +264,7 @@ pub async fn get_adapt(
     path: Result<Path<String>, PathRejection>,
 ) -> Result<Json<AdaptationStatus>, AppError> {
     let id = adaptation_id(path)?;
-    match state.roofs.adaptations.get(&id).await? {
+    match state.generator.roofs.adaptations.get(&id).await? {
         Some(a) if is_deleted(&a.state) => Err(deleted(&id, &a.state)),
         Some(a) => Ok(Json(a)),
         None => Err(AppError::not_found(

@@ -70,8 +70,8 @@ pub async fn health(State(state): State<AppState>) -> Result<Json<Health>, AppEr
             latency_ms: started.elapsed().as_secs_f64() * 1e3,
         },
         version: env!("CARGO_PKG_VERSION"),
-        dem_files: state.dem.file_count(),
-        buildings: state.source.summary(),
+        dem_files: state.generator.dem.file_count(),
+        buildings: state.generator.source.summary(),
         roof_classifier: state.classifier.as_ref().map(|c| c.model_id().to_owned()),
     }))
 }

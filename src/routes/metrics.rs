@@ -16,7 +16,7 @@ use std::time::Instant;
         (status = 404, description = "Never: listed because every operation names its client errors", body = ErrorBody),
     ))]
 pub async fn metrics(State(state): State<AppState>) -> Response {
-    let gauges = &state.metrics.memory_cache_bytes;
+    let gauges = &state.generator.metrics.memory_cache_bytes;
     for (cache, bytes) in state.memory_use().await {
         gauges
             .get_or_create(&CacheNameLabels { cache })
@@ -30,7 +30,7 @@ pub async fn metrics(State(state): State<AppState>) -> Response {
             header::CONTENT_TYPE,
             HeaderValue::from_static("text/plain; version=0.0.4; charset=utf-8"),
         )],
-        state.metrics.render(),
+        state.generator.metrics.render(),
     )
         .into_response()
 }
@@ -42,7 +42,7 @@ pub async fn track(State(state): State<AppState>, request: Request, next: Next) 
     let route = request.extensions().get::<MatchedPath>().cloned();
     let started = Instant::now();
     let response = next.run(request).await;
-    state.metrics.requests.record(
+    state.generator.metrics.requests.record(
         route.as_ref().map_or("unmatched", MatchedPath::as_str),
         response.status().as_u16(),
         started.elapsed(),

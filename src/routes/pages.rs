@@ -41,6 +41,7 @@ static TILES_RENDERER_HTML: LazyLock<String> =
     ))]
 pub async fn viewer(State(state): State<AppState>) -> Html<String> {
     let (lon, lat) = state
+        .generator
         .source
         .extent()
         .map_or((DEFAULT_LON, DEFAULT_LAT), |b| b.center());
@@ -100,7 +101,7 @@ pub async fn tiles_renderer(State(state): State<AppState>) -> Html<String> {
 /// can close the script).
 fn with_imagery_credit(html: &str, state: &AppState) -> String {
     let text = if state.classifier.is_some() {
-        state.roofs.imagery_attribution.as_str()
+        state.generator.roofs.imagery_attribution.as_str()
     } else {
         ""
     };

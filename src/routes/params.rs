@@ -126,7 +126,7 @@ pub fn mesh_options(
 
 /// The ground heights count from: `?height_base=` if given, else the server's `--height-base`.
 pub fn heights_for(state: &AppState, asked: Option<HeightBaseParam>) -> HeightBase {
-    asked.map_or(state.height_base, HeightBase::from)
+    asked.map_or(state.generator.height_base, HeightBase::from)
 }
 
 /// Where roof shapes come from, and how the GLB is encoded.

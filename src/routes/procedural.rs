@@ -6,8 +6,8 @@ use super::conditional::{conditional_response, generated_response};
 use super::schemas::GlbBytes;
 use crate::cache::etag_header;
 use crate::error::{AppError, ErrorBody};
+use crate::pipeline::Generator;
 use crate::pipeline::{Buildings, MeshOptions, generate, run_blocking};
-use crate::state::AppState;
 use axum::extract::rejection::QueryRejection;
 use axum::extract::{Query, State};
 use axum::http::{HeaderMap, HeaderValue, header};
@@ -128,12 +128,12 @@ impl ProceduralQuery {
 }
 
 async fn city(
-    state: &AppState,
+    generator: &Generator,
     query: Result<Query<ProceduralQuery>, QueryRejection>,
 ) -> Result<ProceduralCity, AppError> {
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
-    let params = query.params(state.limits.max_bbox_km2)?;
-    run_blocking(state, move || {
+    let params = query.params(generator.limits.max_bbox_km2)?;
+    run_blocking(generator, move || {
         generate_city(&params).map_err(|e| bad(e.to_string()))
     })
     .await
@@ -153,11 +153,11 @@ async fn city(
         (status = 500, description = "An internal failure; the server log has the cause", body = ErrorBody),
     ))]
 pub async fn procedural_geojson(
-    State(state): State<AppState>,
+    State(generator): State<Generator>,
     request_headers: HeaderMap,
     query: Result<Query<ProceduralQuery>, QueryRejection>,
 ) -> Result<Response, AppError> {
-    let city = city(&state, query).await?;
+    let city = city(&generator, query).await?;
     let body = Bytes::from(write_geojson(&city.records, &city.bbox));
     let mut headers = HeaderMap::new();
     headers.insert(
@@ -187,19 +187,22 @@ pub async fn procedural_geojson(
         (status = 503, description = "Every generation slot is busy, or generation took too long; see Retry-After", body = ErrorBody),
     ))]
 pub async fn procedural_glb(
-    State(state): State<AppState>,
+    State(generator): State<Generator>,
     request_headers: HeaderMap,
     query: Result<Query<ProceduralQuery>, QueryRejection>,
 ) -> Result<Response, AppError> {
-    let city = city(&state, query).await?;
+    let city = city(&generator, query).await?;
     let bbox = city.bbox;
-    let set = run_blocking(&state, move || Ok(Arc::new(BuildingSet::new(city.records)))).await?;
+    let set = run_blocking(&generator, move || {
+        Ok(Arc::new(BuildingSet::new(city.records)))
+    })
+    .await?;
     let generated = generate(
-        &state,
+        &generator,
         SceneArea::Given(bbox),
         Buildings::Given(set),
         None,
-        MeshOptions::new(&state, Encoding::Plain),
+        MeshOptions::new(&generator, Encoding::Plain),
     )
     .await?;
     Ok(generated_response(

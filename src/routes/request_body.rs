@@ -61,7 +61,7 @@ pub async fn guard(State(state): State<AppState>, request: Request, next: Next) 
     if http_body::Body::is_end_stream(request.body()) {
         return next.run(request).await;
     }
-    let timeout = state.limits.body_timeout;
+    let timeout = state.generator.limits.body_timeout;
     let expired = Arc::new(AtomicBool::new(false));
     let (parts, body) = request.into_parts();
     let body = Body::new(DeadlineBody {

@@ -48,31 +48,32 @@ struct RoofPlan {
     chosen: ChosenRoofs,
 }
 
-/// The plan for `roofs` other than `osm`.
-async fn plan(state: &AppState, area: SceneArea, roofs: RoofsParam) -> Result<RoofPlan, AppError> {
+/// The plan for `roofs`: `None` for `osm`, whose tiles take the tags as they are (their key has
+/// no roof source, and the cache gathers the buildings only on a miss).
+async fn plan(
+    state: &AppState,
+    area: SceneArea,
+    roofs: RoofsParam,
+) -> Result<Option<RoofPlan>, AppError> {
     Ok(match roofs {
+        RoofsParam::Osm => None,
         RoofsParam::Inferred => {
-            let p = inferred_roofs(state, area).await?;
-            RoofPlan {
+            let p = inferred_roofs(&state.generator, area).await?;
+            Some(RoofPlan {
                 buildings: p.buildings,
                 choice: p.choice,
                 source: p.source,
                 chosen: ChosenRoofs::Inferred(p.figures),
-            }
-        }
-        RoofsParam::Osm => {
-            return Err(AppError::internal(
-                "roofs=osm has no roof plan: it goes straight to the cache",
-            ));
+            })
         }
         RoofsParam::Classified => {
-            let p = classified_roofs(state, area).await?;
-            RoofPlan {
+            let p = classified_roofs(&state.generator, area).await?;
+            Some(RoofPlan {
                 buildings: p.buildings,
                 choice: p.choice,
                 source: p.source,
                 chosen: ChosenRoofs::Classified(p.figures),
-            }
+            })
         }
     })
 }
@@ -86,15 +87,23 @@ pub async fn cached_tile(
     cache_control: &'static str,
 ) -> Result<Response, AppError> {
     let area = key.tile.area();
-    if roofs == RoofsParam::Osm {
+    let Some(plan) = plan(state, area, roofs).await? else {
+        // `roofs=osm`, the common case: as lean as a plain cached tile.
         let (cached, level) = state
             .tiles
             .get_or_generate(
                 key,
-                || gather(state, area),
+                || gather(&state.generator, area),
                 |buildings| async {
-                    let mesh = MeshOptions::new(state, key.encoding);
-                    let g = generate(state, area, Buildings::Loaded(buildings), None, mesh).await?;
+                    let mesh = MeshOptions::new(&state.generator, key.encoding);
+                    let g = generate(
+                        &state.generator,
+                        area,
+                        Buildings::Loaded(buildings),
+                        None,
+                        mesh,
+                    )
+                    .await?;
                     Ok::<_, AppError>((g.glb, g.stats))
                 },
             )
@@ -105,8 +114,7 @@ pub async fn cached_tile(
             level,
             cache_control,
         ));
-    }
-    let plan = plan(state, area, roofs).await?;
+    };
     let key = key.with_roofs(plan.source);
     let (cached, level) = state
         .tiles
@@ -115,11 +123,11 @@ pub async fn cached_tile(
             || async { Ok::<_, AppError>(plan.buildings) },
             |buildings| async {
                 let g = generate(
-                    state,
+                    &state.generator,
                     area,
                     Buildings::Loaded(buildings),
                     Some(plan.choice),
-                    MeshOptions::new(state, key.encoding),
+                    MeshOptions::new(&state.generator, key.encoding),
                 )
                 .await?;
                 Ok::<_, AppError>((g.glb, g.stats))
@@ -140,10 +148,9 @@ pub async fn generate_with_roofs(
     roofs: RoofsParam,
     mesh: MeshOptions,
 ) -> Result<(Generated, ChosenRoofs), AppError> {
-    if roofs != RoofsParam::Osm {
-        let plan = plan(state, area, roofs).await?;
+    if let Some(plan) = plan(state, area, roofs).await? {
         let generated = generate(
-            state,
+            &state.generator,
             area,
             Buildings::Loaded(plan.buildings),
             Some(plan.choice),
@@ -153,10 +160,10 @@ pub async fn generate_with_roofs(
         return Ok((generated, plan.chosen));
     }
     let bbox = match area {
-        SceneArea::Bbox(b) if mesh.heights == state.height_base => b,
+        SceneArea::Bbox(b) if mesh.heights == state.generator.height_base => b,
         _ => {
             return Ok((
-                generate(state, area, Buildings::FromSource, None, mesh).await?,
+                generate(&state.generator, area, Buildings::FromSource, None, mesh).await?,
                 ChosenRoofs::TagsOnly,
             ));
         }
@@ -166,7 +173,7 @@ pub async fn generate_with_roofs(
         .tiles
         .scenes
         .get_or_generate(key, || async {
-            let g = generate(state, area, Buildings::FromSource, None, mesh).await?;
+            let g = generate(&state.generator, area, Buildings::FromSource, None, mesh).await?;
             Ok::<_, AppError>((g.glb, g.stats))
         })
         .await?;

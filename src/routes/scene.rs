@@ -121,7 +121,7 @@ async fn generate_box(
     roofs: Option<RoofsParam>,
     mesh: MeshOptions,
 ) -> Result<(Generated, ChosenRoofs), AppError> {
-    let bbox = parse_bbox(bbox, &state.limits)?;
+    let bbox = parse_bbox(bbox, &state.generator.limits)?;
     generate_with_roofs(
         state,
         SceneArea::Bbox(bbox),

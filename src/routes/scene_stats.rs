@@ -159,7 +159,7 @@ pub async fn scene_stats(
     query: Result<Query<BboxQuery>, QueryRejection>,
 ) -> Result<Json<SceneStats>, AppError> {
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
-    let bbox = parse_bbox(query.bbox.as_deref(), &state.limits)?;
+    let bbox = parse_bbox(query.bbox.as_deref(), &state.generator.limits)?;
     let area = SceneArea::Bbox(bbox);
     let roofs = query.roofs.unwrap_or_default();
     let mesh = MeshOptions {
@@ -171,7 +171,7 @@ pub async fn scene_stats(
     if roofs == RoofsParam::Classified {
         let (plain, _) = generate_with_roofs(&state, area, RoofsParam::Osm, mesh).await?;
         stats.without_classifier = Some(PaperFigures::of(&plain));
-        stats.imagery_attribution = Some(state.roofs.imagery_attribution.clone());
+        stats.imagery_attribution = Some(state.generator.roofs.imagery_attribution.clone());
     }
     Ok(Json(stats))
 }

@@ -103,7 +103,7 @@ pub async fn post_scene(
         )
     })?;
     let limits = state.geojson_limits;
-    let scene = run_blocking(&state, move || {
+    let scene = run_blocking(&state.generator, move || {
         read_geojson(&bytes, limits).map_err(|e| {
             let (status, code) = match e.kind {
                 GeoJsonErrorKind::TooLarge => (StatusCode::PAYLOAD_TOO_LARGE, "too_large"),
@@ -138,21 +138,21 @@ pub async fn post_scene(
         })?,
     };
     let km2 = bbox.area_km2();
-    if km2 > state.limits.max_bbox_km2 {
+    if km2 > state.generator.limits.max_bbox_km2 {
         return Err(AppError::bad_request(
             "bbox_too_large",
             format!(
                 "the buildings span {km2:.2} km², more than this server's limit of {} km²",
-                state.limits.max_bbox_km2
+                state.generator.limits.max_bbox_km2
             ),
         ));
     }
-    let set = run_blocking(&state, move || {
+    let set = run_blocking(&state.generator, move || {
         Ok(Arc::new(BuildingSet::new(scene.records)))
     })
     .await?;
     let generated = generate(
-        &state,
+        &state.generator,
         SceneArea::Given(bbox),
         Buildings::Given(set),
         None,

@@ -1,12 +1,10 @@
 //! `GET /tiles/{z}/{x}/{y}.glb`: Web Mercator XYZ tiles, through the tile cache.
 
-use super::conditional::cached_response;
 use super::params::{TileQuery, encoding_for, tile_query_of};
 use super::roofs::cached_tile;
 use super::schemas::GlbBytes;
 use crate::cache::TileKey;
 use crate::error::{AppError, ErrorBody};
-use crate::pipeline::{Buildings, MeshOptions, RoofsParam, gather, generate};
 use crate::state::AppState;
 use axum::extract::rejection::PathRejection;
 use axum::extract::{Path, RawQuery, Request, State};
@@ -55,7 +53,7 @@ pub async fn tile_glb(
     let request_headers = request.headers();
     let Path((z, x, y)) = path.map_err(|e| AppError::bad_request("invalid_tile", e.body_text()))?;
     let tile = parse_tile(&z, &x, &y)?;
-    let limits = state.limits;
+    let limits = state.generator.limits;
     if tile.z < limits.min_zoom || tile.z > limits.max_zoom {
         return Err(AppError::not_found(
             "zoom_not_served",
@@ -68,38 +66,8 @@ pub async fn tile_glb(
     let asked = tile_query_of(query.as_deref())?;
     let encoding = encoding_for(asked.encoding, request_headers, Encoding::Plain);
     let key = TileKey::xyz(tile).with_encoding(encoding);
-    match asked.roofs.unwrap_or_default() {
-        // The common case stays as lean as a plain cached tile.
-        RoofsParam::Osm => {
-            let (cached, level) = state
-                .tiles
-                .get_or_generate(
-                    key,
-                    || gather(&state, key.tile.area()),
-                    |buildings| async {
-                        let g = generate(
-                            &state,
-                            key.tile.area(),
-                            Buildings::Loaded(buildings),
-                            None,
-                            MeshOptions::new(&state, encoding),
-                        )
-                        .await?;
-                        Ok::<_, AppError>((g.glb, g.stats))
-                    },
-                )
-                .await?;
-            Ok(cached_response(
-                request_headers,
-                cached,
-                level,
-                TILE_CACHE_CONTROL,
-            ))
-        }
-        roofs @ (RoofsParam::Classified | RoofsParam::Inferred) => {
-            cached_tile(&state, request_headers, key, roofs, TILE_CACHE_CONTROL).await
-        }
-    }
+    let roofs = asked.roofs.unwrap_or_default();
+    cached_tile(&state, request_headers, key, roofs, TILE_CACHE_CONTROL).await
 }
 
 /// Tiles change only when their data does: clients may keep them an hour, then revalidate with

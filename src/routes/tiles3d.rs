@@ -88,9 +88,9 @@ const CONTENT_ENCODING: Encoding = Encoding::Meshopt;
 /// The tree's root: the `bbox` given, else the extent of the served buildings.
 fn root_for(state: &AppState, text: Option<&str>) -> Result<GeoBbox, AppError> {
     if let Some(t) = text {
-        return parse_bbox(Some(t), &state.limits);
+        return parse_bbox(Some(t), &state.generator.limits);
     }
-    let extent = state.source.extent().ok_or_else(|| {
+    let extent = state.generator.source.extent().ok_or_else(|| {
         AppError::bad_request(
             "missing_bbox",
             "this server fetches OSM data by area (or has none loaded): add \
@@ -99,7 +99,7 @@ fn root_for(state: &AppState, text: Option<&str>) -> Result<GeoBbox, AppError> {
     })?;
     // The content URIs name the root: a root the content routes would refuse is refused here,
     // so a tileset never lists a URI that answers 400.
-    parse_bbox(Some(&extent.to_string()), &state.limits).map_err(|e| match e {
+    parse_bbox(Some(&extent.to_string()), &state.generator.limits).map_err(|e| match e {
         AppError::BadRequest {
             code: "bbox_too_large",
             detail,
@@ -122,7 +122,7 @@ fn implicit_request(
 ) -> Result<(GeoBbox, ImplicitTile), AppError> {
     let Path((bbox, level, x, y)) =
         path.map_err(|e| AppError::bad_request("invalid_tile", e.body_text()))?;
-    let root = parse_bbox(Some(&bbox), &state.limits)?;
+    let root = parse_bbox(Some(&bbox), &state.generator.limits)?;
     Ok((root, parse_implicit(&level, &x, &y, ext)?))
 }
 
@@ -181,7 +181,8 @@ pub async fn tileset(
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
     let root = root_for(&state, query.bbox.as_deref())?;
     let pitched = query.roofs.unwrap_or_default() != RoofsParam::Osm;
-    let regions = pipeline::tile_regions(&state, root, pitched).await?;
+    let regions =
+        pipeline::tile_regions(&state.generator, &state.tiles.regions, root, pitched).await?;
     let json = tileset_json(
         root,
         &regions,
@@ -223,7 +224,7 @@ pub async fn subtree(
     }
     // Regions hold pitched variants of untagged roofs for content with chosen roofs.
     let pitched = query.roofs.unwrap_or_default() != RoofsParam::Osm;
-    let bytes = pipeline::subtree(&state, root, pitched).await?;
+    let bytes = pipeline::subtree(&state.generator, &state.tiles.regions, root, pitched).await?;
     Ok((
         [
             (header::CONTENT_TYPE, "application/octet-stream"),

@@ -17,6 +17,7 @@ use crate::clock::Clock;
 use crate::db;
 use crate::dem::DemStore;
 use crate::metrics::Metrics;
+use crate::pipeline::{Generator, GeneratorParts};
 use crate::roofs::classifier::RoofClassifier as _;
 use crate::roofs::jobs::{JobQueue, RoofJobs};
 use crate::source::data_tiles::{DataTileMemory, OsmTileStore};
@@ -243,28 +244,10 @@ pub async fn build_state_with_clock(args: &ServeArgs, clock: Clock) -> anyhow::R
         "roof predictions loaded"
     );
     let classifier = classifier.map(|c| c as Arc<dyn crate::roofs::classifier::RoofClassifier>);
-    Ok(AppState::new(ServerState {
-        database,
-        classifier,
-        roofs,
-        priors,
-        stopping,
-        cors_origins: Arc::new(args.cors_origin.clone()),
-        memory_budget: memory,
-        height_base,
-        roof_method,
-        dem: Arc::new(dem),
+    let generator = Generator::new(GeneratorParts {
         source,
-        tiles,
-        metrics,
-        max_upload_bytes: args.max_upload_mb.saturating_mul(1 << 20) as usize,
-        geojson_limits: citymesh_core::geojson::GeoJsonLimits {
-            max_features: args.max_features,
-            max_vertices: args.max_vertices,
-        },
+        dem: Arc::new(dem),
         generations: Arc::new(Semaphore::new(slots)),
-        demo,
-        assets_dir: args.assets_dir.clone(),
         limits: Limits {
             max_bbox_km2: args.max_bbox_km2,
             max_ground_cells: args.max_ground_cells,
@@ -275,6 +258,27 @@ pub async fn build_state_with_clock(args: &ServeArgs, clock: Clock) -> anyhow::R
             request_timeout: Duration::from_secs_f64(args.request_timeout_s),
             body_timeout: Duration::from_secs_f64(args.body_timeout_s),
         },
+        metrics,
+        height_base,
+        roof_method,
+        roofs,
+        priors,
+        stopping,
+    });
+    Ok(AppState::new(ServerState {
+        database,
+        classifier,
+        generator,
+        cors_origins: Arc::new(args.cors_origin.clone()),
+        memory_budget: memory,
+        tiles,
+        max_upload_bytes: args.max_upload_mb.saturating_mul(1 << 20) as usize,
+        geojson_limits: citymesh_core::geojson::GeoJsonLimits {
+            max_features: args.max_features,
+            max_vertices: args.max_vertices,
+        },
+        demo,
+        assets_dir: args.assets_dir.clone(),
     }))
 }
 

@@ -161,7 +161,10 @@ async fn adapting_on_the_tagged_roofs_of_an_area_classifies_its_untagged_roofs_b
     );
     let state = citymesh::server::build_state(&args).await.unwrap();
     assert!(state.classifier.is_some(), "the classifier did not load");
-    state.roofs.spawn_workers(1, WorkerConfig::default());
+    state
+        .generator
+        .roofs
+        .spawn_workers(1, WorkerConfig::default());
     let app = citymesh::app(state.clone());
     let tile = tile_of(8.4012, 49.0550, 17);
     let tile_uri = format!(
@@ -235,7 +238,7 @@ async fn adapting_on_the_tagged_roofs_of_an_area_classifies_its_untagged_roofs_b
         (SHIPPED_RIGHT, ADAPTED_RIGHT)
     );
     assert!(adapted_right > shipped_right);
-    let active = state.roofs.active();
+    let active = state.generator.roofs.active();
     assert!(active.model_id.ends_with(&format!("+head-{head_id}")));
 
     // A FeatureCollection naming one east building by a point (its centre): the box around a
@@ -325,7 +328,7 @@ async fn adapt_roofs_from_osm_files_stores_a_head_the_server_then_uses() {
     // A server on the same database and imagery uses the stored head from the start.
     let args = common::imagery::classifying_args(&db, &osm, &url, "styled");
     let state = citymesh::server::build_state(&args).await.unwrap();
-    let active = state.roofs.active();
+    let active = state.generator.roofs.active();
     assert!(
         active.model_id.ends_with(&format!("+head-{head_id}")),
         "{}",
@@ -335,7 +338,7 @@ async fn adapt_roofs_from_osm_files_stores_a_head_the_server_then_uses() {
     let mut other = args.clone();
     other.imagery.imagery_id = "other".into();
     let state = citymesh::server::build_state(&other).await.unwrap();
-    assert!(!state.roofs.active().model_id.contains("+head-"));
+    assert!(!state.generator.roofs.active().model_id.contains("+head-"));
 
     // Too few examples: said, exit 1, nothing written.
     let none = dir.path().join("none.json");
@@ -423,7 +426,11 @@ async fn one_adaptation_runs_at_a_time_and_cancel_and_shutdown_stop_it() {
     let next = common::post_json(&app, "/classify/adapt", serde_json::json!({"bbox": WEST})).await;
     assert_eq!(next.status, StatusCode::ACCEPTED, "{}", next.text());
     let next = next.json()["id"].as_str().unwrap().to_owned();
-    state.roofs.shut_down(Duration::from_secs(120)).await;
+    state
+        .generator
+        .roofs
+        .shut_down(Duration::from_secs(120))
+        .await;
     let status = common::get(&app, &format!("/classify/adapt/{next}"))
         .await
         .json();
@@ -433,7 +440,13 @@ async fn one_adaptation_runs_at_a_time_and_cancel_and_shutdown_stop_it() {
         "{status}"
     );
     assert_eq!(
-        state.roofs.adaptations.running("styled").await.unwrap(),
+        state
+            .generator
+            .roofs
+            .adaptations
+            .running("styled")
+            .await
+            .unwrap(),
         None
     );
 }

@@ -45,6 +45,7 @@ async fn the_server_and_the_command_classify_the_same_buildings_of_a_box() {
     assert_eq!(answer.status, StatusCode::ACCEPTED, "{}", answer.text());
     let server_counts = answer.json()["counts"].clone();
     state
+        .generator
         .roofs
         .shut_down(std::time::Duration::from_secs(60))
         .await;

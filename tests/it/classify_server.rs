@@ -76,7 +76,10 @@ async fn server(db: &Path, osm: &Path, imagery_url: &str) -> (axum::Router, AppS
     ];
     let state = classifier_state(db, imagery_url, &extra).await;
     assert!(state.classifier.is_some(), "the classifier did not load");
-    state.roofs.spawn_workers(1, WorkerConfig::default());
+    state
+        .generator
+        .roofs
+        .spawn_workers(1, WorkerConfig::default());
     (citymesh::app(state.clone()), state)
 }
 
@@ -299,6 +302,7 @@ async fn stripped_kirchfeld_classified_through_the_api_agrees_with_its_tags_and_
     }
     let home_before = common::get(&app, &tile_uri(home, "classified")).await;
     let entry = state
+        .generator
         .roofs
         .active()
         .index
@@ -307,7 +311,7 @@ async fn stripped_kirchfeld_classified_through_the_api_agrees_with_its_tags_and_
     let old = entry.prediction.probabilities;
     // The same confidence, another class.
     let turned = [old[1], old[2], old[0]];
-    state.roofs.active().index.insert(
+    state.generator.roofs.active().index.insert(
         moved_id.clone(),
         entry.footprint_hash.clone(),
         citymesh::roofs::classifier::Prediction::new(turned),
@@ -673,7 +677,10 @@ async fn a_job_two_batches_share_survives_the_deletion_of_one() {
         c_queued
     );
     // A worker then does B's jobs.
-    state.roofs.spawn_workers(1, WorkerConfig::default());
+    state
+        .generator
+        .roofs
+        .spawn_workers(1, WorkerConfig::default());
     let done = wait_finished(&app, &b_id).await;
     let ended = done["jobs"]["done"].as_u64().unwrap() + done["jobs"]["failed"].as_u64().unwrap();
     assert_eq!(ended, queued, "{done}");
@@ -821,9 +828,15 @@ async fn post_classify_gathers_its_buildings_within_the_request_timeout() {
         assert!(!answer.header("retry-after").is_empty());
     }
     // The adaptation that timed out is recorded as failed, so the next one may start.
-    let imagery_id = state.roofs.imagery_id.clone();
+    let imagery_id = state.generator.roofs.imagery_id.clone();
     assert_eq!(
-        state.roofs.adaptations.running(&imagery_id).await.unwrap(),
+        state
+            .generator
+            .roofs
+            .adaptations
+            .running(&imagery_id)
+            .await
+            .unwrap(),
         None
     );
 }
@@ -881,7 +894,7 @@ async fn classification_batches_stay_within_their_budget_and_expire() {
     );
     assert_eq!(over.json()["error"], "too_many_batches");
     assert!(!over.header("retry-after").is_empty());
-    let (all, mine) = state.roofs.batches.usage("local").await.unwrap();
+    let (all, mine) = state.generator.roofs.batches.usage("local").await.unwrap();
     assert_eq!((all, mine), (fit * bytes, fit * bytes));
     let delete = |id: String| {
         let app = app.clone();
@@ -895,7 +908,7 @@ async fn classification_batches_stay_within_their_budget_and_expire() {
     };
     // Deleting a batch gives its links back at once.
     delete(ids.remove(0)).await;
-    let (all, _) = state.roofs.batches.usage("local").await.unwrap();
+    let (all, _) = state.generator.roofs.batches.usage("local").await.unwrap();
     assert_eq!(all, (fit - 1) * bytes + batch_bytes(0));
     let again = common::post_json(&app, "/classify", serde_json::json!({ "bbox": AREA })).await;
     assert_eq!(again.status, StatusCode::ACCEPTED, "{}", again.text());
@@ -906,9 +919,18 @@ async fn classification_batches_stay_within_their_budget_and_expire() {
     for id in ids {
         delete(id).await;
     }
-    let expired = state.roofs.batches.expire(i64::MAX).await.unwrap();
+    let expired = state
+        .generator
+        .roofs
+        .batches
+        .expire(i64::MAX)
+        .await
+        .unwrap();
     assert_eq!(expired, fit);
-    assert_eq!(state.roofs.batches.usage("local").await.unwrap(), (0, 0));
+    assert_eq!(
+        state.generator.roofs.batches.usage("local").await.unwrap(),
+        (0, 0)
+    );
     let gone = common::get(&app, &format!("/classify/{last}")).await;
     assert_eq!(gone.status, StatusCode::NOT_FOUND, "{}", gone.text());
     let text = gone.text();
@@ -934,7 +956,7 @@ async fn a_round_on_slow_imagery_keeps_its_jobs_and_each_is_done_once() {
     assert!(queued >= 8, "{created}");
     // Two workers; every imagery tile takes a second, longer than a lease: a round outlasts its
     // lease unless the lease is extended, and the other worker would take its jobs.
-    state.roofs.spawn_workers(
+    state.generator.roofs.spawn_workers(
         2,
         WorkerConfig {
             claim: 64,

@@ -63,7 +63,10 @@ async fn the_classifier_and_the_prior_together_beat_each_alone() {
     );
     let state = citymesh::server::build_state(&args).await.unwrap();
     assert!(state.classifier.is_some(), "the classifier did not load");
-    state.roofs.spawn_workers(1, WorkerConfig::default());
+    state
+        .generator
+        .roofs
+        .spawn_workers(1, WorkerConfig::default());
     let app = citymesh::app(state.clone());
 
     let created = common::post_json(&app, "/classify", serde_json::json!({ "bbox": PART })).await;

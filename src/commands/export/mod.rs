@@ -58,9 +58,10 @@ pub async fn run(state: &AppState, args: &ExportArgs) -> anyhow::Result<ExportSu
     // The content files, then the files that make the tree whole (written last).
     let (content, last): (Vec<Content>, Vec<Finishing>) = match args.format {
         ExportFormat::Tiles3d => {
-            let regions = pipeline::tile_regions(state, bbox, false)
-                .await
-                .map_err(app_error)?;
+            let regions =
+                pipeline::tile_regions(&state.generator, &state.tiles.regions, bbox, false)
+                    .await
+                    .map_err(app_error)?;
             // Every level has content: the leaves in full, the coarser levels simplified.
             let content = (0..=regions.leaf_level)
                 .flat_map(|level| {
@@ -77,9 +78,10 @@ pub async fn run(state: &AppState, args: &ExportArgs) -> anyhow::Result<ExportSu
             let tileset = tileset_json(bbox, &regions, tiling, "", "");
             let mut last = Vec::new();
             if tiling == Tiling::Implicit {
-                let subtree = pipeline::subtree(state, bbox, false)
-                    .await
-                    .map_err(app_error)?;
+                let subtree =
+                    pipeline::subtree(&state.generator, &state.tiles.regions, bbox, false)
+                        .await
+                        .map_err(app_error)?;
                 last.push(("subtrees/0/0/0.subtree".to_owned(), subtree.to_vec()));
             }
             last.push((
@@ -115,10 +117,11 @@ pub async fn run(state: &AppState, args: &ExportArgs) -> anyhow::Result<ExportSu
             if out.exists(&path).await? {
                 return Ok::<_, anyhow::Error>(false);
             }
-            let mesh = MeshOptions::new(state, encoding);
-            let generated = pipeline::generate(state, area, Buildings::FromSource, None, mesh)
-                .await
-                .map_err(app_error)?;
+            let mesh = MeshOptions::new(&state.generator, encoding);
+            let generated =
+                pipeline::generate(&state.generator, area, Buildings::FromSource, None, mesh)
+                    .await
+                    .map_err(app_error)?;
             out.put(&path, generated.glb.clone()).await?;
             Ok(true)
         }))

@@ -9,9 +9,10 @@
 use super::{candidates, priors_of, scope_of};
 use crate::cache::RoofSource;
 use crate::error::AppError;
+use crate::pipeline::Generator;
+use crate::pipeline::PipelineError;
 use crate::roofs::jobs::footprint_hash;
 use crate::source::AreaBuildings;
-use crate::state::AppState;
 use citymesh_core::osm::{BuildingRecord, OsmId};
 use citymesh_core::roof_image::RoofClass;
 use citymesh_core::roof_prior::combine;
@@ -58,20 +59,20 @@ impl RoofFigures {
 
 /// The roofs of `area`'s buildings with `roofs=classified`.
 pub async fn classified_roofs(
-    state: &AppState,
+    generator: &Generator,
     area: SceneArea,
 ) -> Result<ClassifiedRoofs, AppError> {
     let bbox = area
         .bbox()
-        .map_err(|e| AppError::bad_request("invalid_tile", e.to_string()))?;
-    let buildings = state.source.buildings(&bbox).await?;
-    let jobs = state.roofs.active();
+        .map_err(|e| PipelineError::InvalidArea(e.to_string()))?;
+    let buildings = generator.source.buildings(&bbox).await?;
+    let jobs = generator.roofs.active();
     let model_key = jobs.model_key();
     let set = buildings.set.clone();
-    let worker = state.clone();
+    let worker = generator.clone();
     // Each candidate's id, footprint hash and prior scope.
     let wanted: Vec<(OsmId, String, Option<crate::source::PriorScope>)> =
-        crate::pipeline::run_blocking(state, move || {
+        crate::pipeline::run_blocking(generator, move || {
             Ok(candidates(&set, area)?
                 .into_iter()
                 .map(|r| (r.id, outline_hash(r), scope_of(&worker, r)))
@@ -98,7 +99,7 @@ pub async fn classified_roofs(
         .filter(|(_, f)| f.is_some())
         .filter_map(|((_, _, s), _)| *s)
         .collect();
-    let priors = priors_of(state, scopes).await?;
+    let priors = priors_of(generator, scopes).await?;
     let mut choice = RoofChoice::new();
     let mut figures = RoofFigures::default();
     let mut digest = xxhash_rust::xxh3::Xxh3::new();

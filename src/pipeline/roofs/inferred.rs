@@ -6,8 +6,9 @@
 use super::{candidates, priors_of, scope_of};
 use crate::cache::RoofSource;
 use crate::error::AppError;
+use crate::pipeline::Generator;
+use crate::pipeline::PipelineError;
 use crate::source::{AreaBuildings, PriorScope};
-use crate::state::AppState;
 use citymesh_core::osm::OsmId;
 use citymesh_core::roof_prior::{APPLY_THRESHOLD, PriorReport};
 use citymesh_core::scene::{Chooser, RoofChoice, SceneArea};
@@ -85,15 +86,18 @@ impl PriorFigures {
 }
 
 /// The roofs of `area`'s buildings with `roofs=inferred`.
-pub async fn inferred_roofs(state: &AppState, area: SceneArea) -> Result<InferredRoofs, AppError> {
+pub async fn inferred_roofs(
+    generator: &Generator,
+    area: SceneArea,
+) -> Result<InferredRoofs, AppError> {
     let bbox = area
         .bbox()
-        .map_err(|e| AppError::bad_request("invalid_tile", e.to_string()))?;
-    let buildings = state.source.buildings(&bbox).await?;
+        .map_err(|e| PipelineError::InvalidArea(e.to_string()))?;
+    let buildings = generator.source.buildings(&bbox).await?;
     let set = buildings.set.clone();
-    let worker = state.clone();
+    let worker = generator.clone();
     let wanted: Vec<(OsmId, Option<PriorScope>)> =
-        crate::pipeline::run_blocking(state, move || {
+        crate::pipeline::run_blocking(generator, move || {
             Ok(candidates(&set, area)?
                 .into_iter()
                 .map(|r| (r.id, scope_of(&worker, r)))
@@ -101,7 +105,7 @@ pub async fn inferred_roofs(state: &AppState, area: SceneArea) -> Result<Inferre
         })
         .await?;
     let scopes: Vec<PriorScope> = wanted.iter().filter_map(|(_, s)| *s).collect();
-    let priors = priors_of(state, scopes).await?;
+    let priors = priors_of(generator, scopes).await?;
     let mut choice = RoofChoice::new();
     let mut figures = InferredFigures {
         threshold: APPLY_THRESHOLD,

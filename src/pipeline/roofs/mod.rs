@@ -11,8 +11,9 @@ pub use classified::{ClassifiedRoofs, RoofFigures, classified_roofs};
 pub use inferred::{InferredFigures, InferredRoofs, PriorFigures, inferred_roofs};
 
 use crate::error::AppError;
+use crate::pipeline::Generator;
+use crate::pipeline::PipelineError;
 use crate::source::PriorScope;
-use crate::state::AppState;
 use citymesh_core::building::set::BuildingSet;
 use citymesh_core::osm::BuildingRecord;
 use citymesh_core::roof_prior::RoofPrior;
@@ -43,7 +44,7 @@ pub enum RoofsParam {
 pub fn candidates(set: &BuildingSet, area: SceneArea) -> Result<Vec<&BuildingRecord>, AppError> {
     let request = area
         .request(set)
-        .map_err(|e| AppError::bad_request("invalid_tile", e.to_string()))?;
+        .map_err(|e| PipelineError::InvalidArea(e.to_string()))?;
     let mut out = Vec::new();
     for group in &request.groups {
         let records = set.cluster_records(group);
@@ -60,14 +61,14 @@ pub fn candidates(set: &BuildingSet, area: SceneArea) -> Result<Vec<&BuildingRec
 }
 
 /// The prior scope of a building: that of its outline's first node.
-pub fn scope_of(state: &AppState, record: &BuildingRecord) -> Option<PriorScope> {
+pub fn scope_of(generator: &Generator, record: &BuildingRecord) -> Option<PriorScope> {
     let n = record.outers.first()?.nodes.first()?;
-    Some(state.source.prior_scope(n.lon, n.lat))
+    Some(generator.source.prior_scope(n.lon, n.lat))
 }
 
 /// The priors of `scopes`, held or fitted now (each on the blocking pool, in a generation slot).
 pub async fn priors_of(
-    state: &AppState,
+    generator: &Generator,
     scopes: Vec<PriorScope>,
 ) -> Result<HashMap<PriorScope, Arc<RoofPrior>>, AppError> {
     let mut out = HashMap::new();
@@ -75,11 +76,11 @@ pub async fn priors_of(
         if out.contains_key(&scope) {
             continue;
         }
-        let (prior, held) = state
+        let (prior, held) = generator
             .priors
             .get_or_fit(scope, async {
-                let records = state.source.prior_records(scope).await?;
-                crate::pipeline::run_blocking(state, move || {
+                let records = generator.source.prior_records(scope).await?;
+                crate::pipeline::run_blocking(generator, move || {
                     let refs: Vec<&BuildingRecord> = records.iter().map(AsRef::as_ref).collect();
                     let prior = RoofPrior::fit(&refs);
                     tracing::info!(
@@ -95,7 +96,7 @@ pub async fn priors_of(
                 .await
             })
             .await?;
-        state.metrics.cache("roof_prior", held);
+        generator.metrics.cache("roof_prior", held);
         out.insert(scope, prior);
     }
     Ok(out)
