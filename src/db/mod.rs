@@ -1,7 +1,9 @@
 //! The database every store lives in: SQLite on one machine (the default, `--cache-db`), or a
-//! PostgreSQL server shared by many replicas (`--database-url postgres://...`). Each store has
-//! one implementation per backend beside its user (`cache/store/`, `source/data_tiles/store/`,
-//! `imagery/cache/`, `jobs/`), chosen by the [`Database`] they are opened on.
+//! PostgreSQL server shared by many replicas (`--database-url postgres://...`). Each store lives
+//! beside its user and is opened on a [`Database`]: its statements written once and run on
+//! either pool by [`on_pool!`], writes begun by [`begin_write`] (`source/data_tiles/store/`);
+//! the older stores still have one implementation per backend (`cache/store/`,
+//! `roofs/imagery/cache.rs`, `roofs/jobs/`).
 
 mod postgres;
 mod sqlite;
@@ -24,6 +26,43 @@ macro_rules! on_pool {
     };
 }
 pub(crate) use on_pool;
+
+/// A pool whose write transactions start as its backend wants them to.
+pub(crate) trait BeginWrite {
+    type Backend: sqlx::Database;
+
+    /// Begins a write: SQLite takes the write lock at once (`BEGIN IMMEDIATE`: two writers
+    /// never deadlock upgrading a read lock, and a busy database answers now); PostgreSQL
+    /// begins as usual (row locks are taken by the statements).
+    fn begin_write(
+        &self,
+    ) -> impl std::future::Future<
+        Output = Result<sqlx::Transaction<'static, Self::Backend>, sqlx::Error>,
+    > + Send;
+}
+
+impl BeginWrite for SqlitePool {
+    type Backend = sqlx::Sqlite;
+
+    async fn begin_write(&self) -> Result<sqlx::Transaction<'static, sqlx::Sqlite>, sqlx::Error> {
+        self.begin_with("BEGIN IMMEDIATE").await
+    }
+}
+
+impl BeginWrite for PgPool {
+    type Backend = sqlx::Postgres;
+
+    async fn begin_write(&self) -> Result<sqlx::Transaction<'static, sqlx::Postgres>, sqlx::Error> {
+        self.begin().await
+    }
+}
+
+/// [`BeginWrite::begin_write`] on whichever pool `on_pool!` bound.
+pub(crate) async fn begin_write<P: BeginWrite>(
+    pool: &P,
+) -> Result<sqlx::Transaction<'static, P::Backend>, sqlx::Error> {
+    pool.begin_write().await
+}
 
 /// How long a statement waits for a lock, and a request for a connection.
 const BUSY_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(5);

@@ -4,8 +4,7 @@
 //! fetched again when needed); imported data is never evicted. Reads note their use in memory
 //! and never write.
 
-mod postgres;
-mod sqlite;
+mod statements;
 
 use crate::clock::Clock;
 use crate::db::{Database, UseNotes};
@@ -104,10 +103,7 @@ impl OsmTileStore {
 
     /// Bytes of stored Overpass data.
     pub async fn overpass_bytes(&self) -> Result<u64, sqlx::Error> {
-        let used = match &self.db {
-            Database::Sqlite(p) => sqlite::overpass_bytes(p).await?,
-            Database::Postgres(p) => postgres::overpass_bytes(p).await?,
-        };
+        let used = statements::overpass_bytes(&self.db).await?;
         Ok(u64::try_from(used).unwrap_or(0))
     }
 
@@ -120,17 +116,11 @@ impl OsmTileStore {
         let _one = self.evicting.lock().await;
         let uses = self.uses.take();
         if !uses.is_empty() {
-            match &self.db {
-                Database::Sqlite(p) => sqlite::write_uses(p, &uses).await?,
-                Database::Postgres(p) => postgres::write_uses(p, &uses).await?,
-            }
+            statements::write_uses(&self.db, &uses).await?;
         }
         let mut used = self.overpass_bytes().await?;
         while used > self.max_bytes {
-            let sizes = match &self.db {
-                Database::Sqlite(p) => sqlite::evict_least_used(p).await?,
-                Database::Postgres(p) => postgres::evict_least_used(p).await?,
-            };
+            let sizes = statements::evict_least_used(&self.db).await?;
             if sizes.is_empty() {
                 break;
             }
@@ -146,10 +136,7 @@ impl OsmTileStore {
     }
 
     pub async fn get(&self, t: &TileCoord) -> Result<Option<StoredDataTile>, sqlx::Error> {
-        let stored = match &self.db {
-            Database::Sqlite(p) => sqlite::get(p, t).await?,
-            Database::Postgres(p) => postgres::get(p, t).await?,
-        };
+        let stored = statements::get(&self.db, t).await?;
         if stored.is_some() {
             // Written with the next stored tile; when many are noted, it is time.
             self.uses
@@ -166,14 +153,14 @@ impl OsmTileStore {
         origin: DataOrigin,
     ) -> Result<bool, sqlx::Error> {
         let hash = content_hash(body);
-        let previous = match &self.db {
-            Database::Sqlite(p) => {
-                sqlite::put(p, t, body, &hash, origin, self.clock.now_secs()).await?
-            }
-            Database::Postgres(p) => {
-                postgres::put(p, t, body, &hash, origin, self.clock.now_secs()).await?
-            }
+        let row = statements::NewRow {
+            t,
+            body,
+            hash: &hash,
+            origin,
+            now_secs: self.clock.now_secs(),
         };
+        let previous = statements::put(&self.db, &row).await?;
         if origin == DataOrigin::Overpass {
             self.evict_if_over().await?;
         }
@@ -195,10 +182,7 @@ impl OsmTileStore {
 
     /// Number of stored data tiles.
     pub async fn count(&self) -> Result<i64, sqlx::Error> {
-        match &self.db {
-            Database::Sqlite(p) => sqlite::count(p).await,
-            Database::Postgres(p) => postgres::count(p).await,
-        }
+        statements::count(&self.db).await
     }
 }
 
@@ -208,7 +192,7 @@ pub struct ImportWriter {
     clock: Clock,
 }
 
-enum ImportTx {
+pub(super) enum ImportTx {
     Sqlite(sqlx::Transaction<'static, sqlx::Sqlite>),
     Postgres(sqlx::Transaction<'static, sqlx::Postgres>),
 }
@@ -218,11 +202,14 @@ impl ImportWriter {
     pub async fn put(&mut self, t: &TileCoord, body: &[u8]) -> Result<bool, sqlx::Error> {
         let hash = content_hash(body);
         let origin = DataOrigin::Import;
-        let now = self.clock.now_secs();
-        let previous = match &mut self.tx {
-            ImportTx::Sqlite(tx) => sqlite::put_in(tx, t, body, &hash, origin, now).await?,
-            ImportTx::Postgres(tx) => postgres::put_in(tx, t, body, &hash, origin, now).await?,
+        let row = statements::NewRow {
+            t,
+            body,
+            hash: &hash,
+            origin,
+            now_secs: self.clock.now_secs(),
         };
+        let previous = statements::put_in(&mut self.tx, &row).await?;
         Ok(previous.as_deref() != Some(hash.as_str()))
     }
 

@@ -1,0 +1,181 @@
+//! The data tiles' statements, each written once for both backends (`$n` placeholders, which
+//! SQLite takes too, and `ON CONFLICT`), compiled for each pool by `on_pool!`; [`Dialect`] holds
+//! the real differences: how a write starts, the larger of two values, and how the least used
+//! row is picked for eviction (PostgreSQL skips rows another replica is deleting).
+
+use super::{DataOrigin, StoredDataTile, stored_of};
+use crate::db::{Database, on_pool};
+use bytes::Bytes;
+use citymesh_core::geo::TileCoord;
+use sqlx::Row;
+use std::collections::HashMap;
+
+/// The statements whose SQL differs between the backends.
+struct Dialect {
+    /// Moves a tile's last use forward (the larger of two values: `MAX` or `GREATEST`).
+    write_use: &'static str,
+    /// Deletes the least recently used Overpass tile (PostgreSQL skips rows another replica is
+    /// deleting).
+    evict: &'static str,
+    /// The hash a put replaces (PostgreSQL locks the row until the transaction ends).
+    previous_hash: &'static str,
+}
+
+const SQLITE: Dialect = Dialect {
+    write_use: "UPDATE osm_data_tiles SET last_used = MAX(last_used, $1) \
+                WHERE z = $2 AND x = $3 AND y = $4",
+    evict: "DELETE FROM osm_data_tiles WHERE rowid IN (SELECT rowid FROM osm_data_tiles \
+            WHERE source = 'overpass' ORDER BY last_used, rowid LIMIT 1) RETURNING size",
+    previous_hash: "SELECT hash FROM osm_data_tiles WHERE z = $1 AND x = $2 AND y = $3",
+};
+
+const POSTGRES: Dialect = Dialect {
+    write_use: "UPDATE osm_data_tiles SET last_used = GREATEST(last_used, $1) \
+                WHERE z = $2 AND x = $3 AND y = $4",
+    evict: "DELETE FROM osm_data_tiles WHERE (z, x, y) IN (SELECT z, x, y FROM osm_data_tiles \
+            WHERE source = 'overpass' ORDER BY last_used, z, x, y LIMIT 1 \
+            FOR UPDATE SKIP LOCKED) RETURNING size",
+    previous_hash: "SELECT hash FROM osm_data_tiles WHERE z = $1 AND x = $2 AND y = $3 \
+                    FOR UPDATE",
+};
+
+fn dialect(db: &Database) -> &'static Dialect {
+    match db {
+        Database::Sqlite(_) => &SQLITE,
+        Database::Postgres(_) => &POSTGRES,
+    }
+}
+
+/// Writes the uses noted since the last write, each only forward in time.
+pub(super) async fn write_uses(
+    db: &Database,
+    uses: &HashMap<TileCoord, i64>,
+) -> Result<(), sqlx::Error> {
+    let sql = dialect(db).write_use;
+    on_pool!(db, pool => {
+        let mut tx = crate::db::begin_write(pool).await?;
+        for (t, at) in uses {
+            sqlx::query(sql)
+                .bind(*at)
+                .bind(i64::from(t.z))
+                .bind(i64::from(t.x))
+                .bind(i64::from(t.y))
+                .execute(&mut *tx)
+                .await?;
+        }
+        tx.commit().await
+    })
+}
+
+/// Bytes of stored Overpass data.
+pub(super) async fn overpass_bytes(db: &Database) -> Result<i64, sqlx::Error> {
+    let sql = "SELECT CAST(COALESCE(SUM(size), 0) AS BIGINT) FROM osm_data_tiles \
+               WHERE source = 'overpass'";
+    on_pool!(db, pool => sqlx::query(sql).fetch_one(pool).await.map(|r| r.get(0)))
+}
+
+/// Deletes the least recently used Overpass tile; answers its size (none when there is none).
+pub(super) async fn evict_least_used(db: &Database) -> Result<Vec<i64>, sqlx::Error> {
+    let sql = dialect(db).evict;
+    let rows = on_pool!(db, pool => sqlx::query(sql)
+        .fetch_all(pool)
+        .await?
+        .iter()
+        .map(|r| r.get(0))
+        .collect());
+    Ok(rows)
+}
+
+pub(super) async fn get(
+    db: &Database,
+    t: &TileCoord,
+) -> Result<Option<StoredDataTile>, sqlx::Error> {
+    let sql = "SELECT body, hash, source, fetched_at FROM osm_data_tiles \
+               WHERE z = $1 AND x = $2 AND y = $3";
+    on_pool!(db, pool => {
+        let row = sqlx::query(sql)
+            .bind(i64::from(t.z))
+            .bind(i64::from(t.x))
+            .bind(i64::from(t.y))
+            .fetch_optional(pool)
+            .await?;
+        Ok(row.map(|r| {
+            stored_of(
+                Bytes::from(r.get::<Vec<u8>, _>(0)),
+                r.get(1),
+                &r.get::<String, _>(2),
+                r.get(3),
+            )
+        }))
+    })
+}
+
+/// The two statements of a put on connection `$conn`: the hash it replaces (its row locked by
+/// the dialect's `$previous_hash`), then the row.
+macro_rules! put_row {
+    ($conn:expr, $row:expr, $previous_hash:expr) => {{
+        let row: &NewRow<'_> = $row;
+        let previous: Option<String> = sqlx::query($previous_hash)
+        .bind(i64::from(row.t.z))
+        .bind(i64::from(row.t.x))
+        .bind(i64::from(row.t.y))
+        .fetch_optional(&mut *$conn)
+        .await?
+        .map(|r| r.get(0));
+        sqlx::query(
+            "INSERT INTO osm_data_tiles (z, x, y, body, hash, source, fetched_at, size, \
+             last_used) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9) ON CONFLICT (z, x, y) DO \
+             UPDATE SET body = excluded.body, hash = excluded.hash, source = excluded.source, \
+             fetched_at = excluded.fetched_at, size = excluded.size, last_used = excluded.last_used",
+        )
+        .bind(i64::from(row.t.z))
+        .bind(i64::from(row.t.x))
+        .bind(i64::from(row.t.y))
+        .bind(row.body)
+        .bind(row.hash)
+        .bind(row.origin.as_str())
+        .bind(row.now_secs)
+        .bind(i64::try_from(row.body.len()).unwrap_or(i64::MAX))
+        .bind(row.now_secs.saturating_mul(1000))
+        .execute(&mut *$conn)
+        .await?;
+        previous
+    }};
+}
+
+/// A data tile to store.
+pub(super) struct NewRow<'a> {
+    pub t: &'a TileCoord,
+    pub body: &'a [u8],
+    pub hash: &'a str,
+    pub origin: DataOrigin,
+    pub now_secs: i64,
+}
+
+/// Stores the row in its own transaction; answers the hash it replaced.
+pub(super) async fn put(db: &Database, row: &NewRow<'_>) -> Result<Option<String>, sqlx::Error> {
+    let previous_hash = dialect(db).previous_hash;
+    on_pool!(db, pool => {
+        let mut tx = crate::db::begin_write(pool).await?;
+        let previous = put_row!(&mut *tx, row, previous_hash);
+        tx.commit().await?;
+        Ok(previous)
+    })
+}
+
+/// Stores the row in the caller's transaction (see `ImportWriter`); answers the hash it
+/// replaced.
+pub(super) async fn put_in(
+    tx: &mut super::ImportTx,
+    row: &NewRow<'_>,
+) -> Result<Option<String>, sqlx::Error> {
+    Ok(match tx {
+        super::ImportTx::Sqlite(tx) => put_row!(&mut **tx, row, SQLITE.previous_hash),
+        super::ImportTx::Postgres(tx) => put_row!(&mut **tx, row, POSTGRES.previous_hash),
+    })
+}
+
+pub(super) async fn count(db: &Database) -> Result<i64, sqlx::Error> {
+    let sql = "SELECT COUNT(*) FROM osm_data_tiles";
+    on_pool!(db, pool => sqlx::query(sql).fetch_one(pool).await.map(|r| r.get(0)))
+}
