@@ -1,8 +1,9 @@
 //! Fetched imagery tiles in the database (SQLite, or PostgreSQL shared by replicas), with a
-//! time to live and a size bound. Each statement is written once per backend, side by side.
+//! time to live and a size bound. Each statement is written once for both backends
+//! (`crate::db::on_pool!`), but eviction, which names rows as each backend does.
 //! Tested on both in `tests/it/storage_backends.rs`.
 
-use crate::db::Database;
+use crate::db::{Database, on_pool};
 use citymesh_core::geo::TileCoord;
 use std::sync::atomic::{AtomicI64, Ordering};
 use std::time::Duration;
@@ -35,31 +36,17 @@ impl ImageryCache {
     pub async fn get(&self, imagery_id: &str, t: TileCoord) -> sqlx::Result<Option<Vec<u8>>> {
         let now = now_ms();
         let oldest = now.saturating_sub(i64::try_from(self.ttl.as_millis()).unwrap_or(i64::MAX));
-        macro_rules! get {
-            ($sql:expr, $pool:expr) => {
-                sqlx::query_scalar($sql)
-                    .bind(now)
-                    .bind(imagery_id)
-                    .bind(i64::from(t.z))
-                    .bind(i64::from(t.x))
-                    .bind(i64::from(t.y))
-                    .bind(oldest)
-                    .fetch_optional($pool)
-                    .await
-            };
-        }
-        match &self.db {
-            Database::Sqlite(p) => get!(
-                "UPDATE imagery_tiles SET last_used = ? WHERE imagery_id = ? AND z = ? AND x = ? \
-                 AND y = ? AND fetched_at >= ? RETURNING bytes",
-                p
-            ),
-            Database::Postgres(p) => get!(
-                "UPDATE imagery_tiles SET last_used = $1 WHERE imagery_id = $2 AND z = $3 \
-                 AND x = $4 AND y = $5 AND fetched_at >= $6 RETURNING bytes",
-                p
-            ),
-        }
+        let sql = "UPDATE imagery_tiles SET last_used = $1 WHERE imagery_id = $2 AND z = $3 \
+                   AND x = $4 AND y = $5 AND fetched_at >= $6 RETURNING bytes";
+        on_pool!(&self.db, pool => sqlx::query_scalar(sql)
+            .bind(now)
+            .bind(imagery_id)
+            .bind(i64::from(t.z))
+            .bind(i64::from(t.x))
+            .bind(i64::from(t.y))
+            .bind(oldest)
+            .fetch_optional(pool)
+            .await)
     }
 
     /// Stores a tile, then evicts the least recently used while the table is over its bound.
@@ -68,35 +55,21 @@ impl ImageryCache {
             return Ok(());
         }
         let now = now_ms();
-        macro_rules! put {
-            ($sql:expr, $pool:expr) => {
-                sqlx::query($sql)
-                    .bind(imagery_id)
-                    .bind(i64::from(t.z))
-                    .bind(i64::from(t.x))
-                    .bind(i64::from(t.y))
-                    .bind(bytes)
-                    .bind(now)
-                    .bind(now)
-                    .execute($pool)
-                    .await
-                    .map(drop)?
-            };
-        }
-        match &self.db {
-            Database::Sqlite(p) => put!(
-                "INSERT OR REPLACE INTO imagery_tiles (imagery_id, z, x, y, bytes, fetched_at, \
-                 last_used) VALUES (?, ?, ?, ?, ?, ?, ?)",
-                p
-            ),
-            Database::Postgres(p) => put!(
-                "INSERT INTO imagery_tiles (imagery_id, z, x, y, bytes, fetched_at, last_used) \
-                 VALUES ($1, $2, $3, $4, $5, $6, $7) ON CONFLICT (imagery_id, z, x, y) DO UPDATE \
-                 SET bytes = EXCLUDED.bytes, fetched_at = EXCLUDED.fetched_at, \
-                 last_used = EXCLUDED.last_used",
-                p
-            ),
-        };
+        let sql = "INSERT INTO imagery_tiles (imagery_id, z, x, y, bytes, fetched_at, last_used) \
+                   VALUES ($1, $2, $3, $4, $5, $6, $7) ON CONFLICT (imagery_id, z, x, y) DO \
+                   UPDATE SET bytes = excluded.bytes, fetched_at = excluded.fetched_at, \
+                   last_used = excluded.last_used";
+        on_pool!(&self.db, pool => sqlx::query(sql)
+            .bind(imagery_id)
+            .bind(i64::from(t.z))
+            .bind(i64::from(t.x))
+            .bind(i64::from(t.y))
+            .bind(bytes)
+            .bind(now)
+            .bind(now)
+            .execute(pool)
+            .await
+            .map(drop))?;
         let stored = self.stored.fetch_add(
             i64::try_from(bytes.len()).unwrap_or(i64::MAX),
             Ordering::Relaxed,
@@ -108,28 +81,26 @@ impl ImageryCache {
     }
 
     /// Deletes the least recently used tiles until the table holds at most 90 % of the bound.
+    /// The one statement that differs: how a row is named (`rowid` or `ctid`).
     async fn evict(&self) -> sqlx::Result<()> {
         let target = i64::try_from(self.max_bytes / 10 * 9).unwrap_or(i64::MAX);
-        match &self.db {
-            Database::Sqlite(p) => sqlx::query(
+        let sql = match &self.db {
+            Database::Sqlite(_) => {
                 "DELETE FROM imagery_tiles WHERE rowid IN (SELECT rowid FROM (SELECT rowid, \
-                     SUM(length(bytes)) OVER (ORDER BY last_used DESC, rowid DESC) AS kept \
-                     FROM imagery_tiles) WHERE kept > ?)",
-            )
-            .bind(target)
-            .execute(p)
-            .await
-            .map(drop)?,
-            Database::Postgres(p) => sqlx::query(
+                 SUM(length(bytes)) OVER (ORDER BY last_used DESC, rowid DESC) AS kept \
+                 FROM imagery_tiles) WHERE kept > $1)"
+            }
+            Database::Postgres(_) => {
                 "DELETE FROM imagery_tiles WHERE ctid IN (SELECT ctid FROM (SELECT ctid, \
-                     SUM(length(bytes)) OVER (ORDER BY last_used DESC, imagery_id DESC, z DESC, \
-                     x DESC, y DESC) AS kept FROM imagery_tiles) t WHERE kept > $1)",
-            )
-            .bind(target)
-            .execute(p)
-            .await
-            .map(drop)?,
+                 SUM(length(bytes)) OVER (ORDER BY last_used DESC, imagery_id DESC, z DESC, \
+                 x DESC, y DESC) AS kept FROM imagery_tiles) t WHERE kept > $1)"
+            }
         };
+        on_pool!(&self.db, pool => sqlx::query(sql)
+            .bind(target)
+            .execute(pool)
+            .await
+            .map(drop))?;
         self.stored
             .store(stored_bytes(&self.db).await?, Ordering::Relaxed);
         Ok(())
@@ -138,16 +109,6 @@ impl ImageryCache {
 
 /// Bytes of stored imagery, counted.
 async fn stored_bytes(db: &Database) -> sqlx::Result<i64> {
-    match db {
-        Database::Sqlite(p) => {
-            sqlx::query_scalar("SELECT COALESCE(SUM(length(bytes)), 0) FROM imagery_tiles")
-                .fetch_one(p)
-                .await
-        }
-        Database::Postgres(p) => {
-            sqlx::query_scalar("SELECT COALESCE(SUM(length(bytes)), 0)::BIGINT FROM imagery_tiles")
-                .fetch_one(p)
-                .await
-        }
-    }
+    let sql = "SELECT CAST(COALESCE(SUM(length(bytes)), 0) AS BIGINT) FROM imagery_tiles";
+    on_pool!(db, pool => sqlx::query_scalar(sql).fetch_one(pool).await)
 }
