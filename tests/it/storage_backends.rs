@@ -44,12 +44,14 @@ fn key(i: u32) -> TileKey {
     TileKey::xyz(TileCoord::new(16, 34_290 + i, 22_493).unwrap())
 }
 
-fn tick() -> tokio::time::Sleep {
-    tokio::time::sleep(Duration::from_millis(2))
-}
-
 async fn tile_scenario(db: Database) -> Vec<String> {
-    let store = TileStore::open(&db, 40 * COST, "test").await.unwrap();
+    // Writes and uses are stamped in milliseconds: the test moves the clock between them.
+    let clock = citymesh::clock::Clock::manual_from_now();
+    let store = TileStore::open(&db, 40 * COST, "test")
+        .await
+        .unwrap()
+        .with_clock(clock.clone());
+    let tick = || clock.advance(Duration::from_millis(2));
     let get = |i: u32, v: &'static str| {
         let store = store.clone();
         async move { store.get(&key(i), v).await.unwrap() }
@@ -86,12 +88,12 @@ async fn tile_scenario(db: Database) -> Vec<String> {
             .put(&key(i), "v1", &[3; 1_000], "c", None)
             .await
             .unwrap();
-        tick().await;
+        tick();
     }
     get(1, "v1").await.unwrap();
-    tick().await;
+    tick();
     get(2, "v1").await.unwrap();
-    tick().await;
+    tick();
     store
         .put(&key(41), "v1", &[4; 1_000], "d", None)
         .await
@@ -205,15 +207,19 @@ async fn data_tiles_are_stored_compared_and_evicted_alike() {
 }
 
 async fn imagery_scenario(db: Database) -> Vec<String> {
+    // Fetches and uses are stamped in milliseconds: the test moves the clock between them.
+    let clock = citymesh::clock::Clock::manual_from_now();
+    let tick = || clock.advance(Duration::from_millis(2));
     let cache = ImageryCache::new(db.clone(), Duration::from_secs(3600), 10_000)
         .await
-        .unwrap();
+        .unwrap()
+        .with_clock(clock.clone());
     let t = |x| TileCoord::new(18, x, 7).unwrap();
     for x in 0..4 {
         cache.put("a", t(x), &[x as u8; 3000]).await.unwrap();
         // Tile 0 is used again before each put: it stays.
         assert!(cache.get("a", t(0)).await.unwrap().is_some());
-        tick().await;
+        tick();
     }
     let mut seen = Vec::new();
     for x in 0..4 {
@@ -224,8 +230,9 @@ async fn imagery_scenario(db: Database) -> Vec<String> {
     seen.push(format!("{:?}", cache.get("b", t(0)).await.unwrap()));
     let short = ImageryCache::new(db, Duration::from_millis(0), 10_000)
         .await
-        .unwrap();
-    tick().await;
+        .unwrap()
+        .with_clock(clock.clone());
+    tick();
     seen.push(format!("{:?}", short.get("a", t(0)).await.unwrap()));
     seen
 }

@@ -49,6 +49,14 @@ pub enum GenerationTurn {
 }
 
 impl TileStore {
+    /// The store with writes and uses stamped by `clock` (tests move a manual one).
+    pub fn with_clock(self, clock: crate::clock::Clock) -> Self {
+        match self {
+            Self::Sqlite(s) => Self::Sqlite(s.with_clock(clock)),
+            Self::Postgres(s) => Self::Postgres(s.with_clock(clock)),
+        }
+    }
+
     /// The store on `db`, bounded to `max_bytes`, announcing data changes as `replica`.
     pub async fn open(db: &Database, max_bytes: u64, replica: &str) -> Result<Self, sqlx::Error> {
         Ok(match db {
@@ -133,11 +141,6 @@ impl TileStore {
             Self::Postgres(s) => s.delete_overlapping(area).await,
         }
     }
-}
-
-/// The system's time (Unix milliseconds): [`crate::clock::Clock`] where no other is injected.
-pub(crate) fn now_ms() -> i64 {
-    crate::clock::Clock::system().now_ms()
 }
 
 /// The key's columns: scheme, region text, z, x, y.

@@ -3,8 +3,9 @@
 //! them (an advisory lock per key, see [`PgTileStore::turn`]) and a notification to every
 //! replica when data changes (sent in the transaction that deletes the tiles over the area).
 
-use super::{GenerationTurn, StoredTile, columns, now_ms};
+use super::{GenerationTurn, StoredTile, columns};
 use crate::cache::key::TileKey;
+use crate::clock::Clock;
 use crate::db::UseNotes;
 use bytes::Bytes;
 use citymesh_core::geo::GeoBbox;
@@ -63,6 +64,8 @@ pub struct PgTileStore {
     writes: Arc<AtomicU64>,
     evicting: Arc<tokio::sync::Mutex<()>>,
     uses: Arc<UseNotes<(TileKey, String)>>,
+    /// What writes and uses are stamped with.
+    clock: Clock,
 }
 
 /// The condition that selects one key's row; [`bind_key`] binds $1 to $8.
@@ -105,6 +108,12 @@ fn is_lock_timeout(e: &sqlx::Error) -> bool {
 }
 
 impl PgTileStore {
+    /// The store with writes and uses stamped by `clock`.
+    pub fn with_clock(mut self, clock: Clock) -> Self {
+        self.clock = clock;
+        self
+    }
+
     /// A store bounded to `max_bytes` (`u64::MAX`: unbounded), announcing changes as `replica`.
     pub async fn bounded(pool: PgPool, max_bytes: u64, replica: &str) -> Result<Self, sqlx::Error> {
         let store = Self {
@@ -115,6 +124,7 @@ impl PgTileStore {
             writes: Arc::new(AtomicU64::new(0)),
             evicting: Arc::new(tokio::sync::Mutex::new(())),
             uses: Arc::new(UseNotes::new(MAX_NOTED_USES)),
+            clock: Clock::system(),
         };
         store.recount().await?;
         store.evict_if_over().await?;
@@ -150,7 +160,11 @@ impl PgTileStore {
         let row = bind_key(sqlx::query(sql), key, data_version)
             .fetch_optional(&self.pool)
             .await?;
-        if row.is_some() && self.uses.note((*key, data_version.to_owned()), now_ms()) {
+        if row.is_some()
+            && self
+                .uses
+                .note((*key, data_version.to_owned()), self.clock.now_ms())
+        {
             let store = self.clone();
             tokio::spawn(async move { store.write_uses().await });
         }
@@ -259,7 +273,7 @@ impl PgTileStore {
         lock: Option<PgGenerationLock>,
     ) -> Result<(), sqlx::Error> {
         let b = key.tile.bounds();
-        let now = now_ms();
+        let now = self.clock.now_ms();
         let cost = bytes.len() as i64 + ROW_OVERHEAD;
         // The replaced row's size (read before the insert, in the same statement) leaves the
         // count.

@@ -6,8 +6,9 @@
 //! waits on, or fails because of, the database's writers. The notes are best-effort: a crash
 //! loses the order of recent use, never a tile.
 
-use super::{StoredTile, columns, now_ms};
+use super::{StoredTile, columns};
 use crate::cache::key::TileKey;
+use crate::clock::Clock;
 use crate::db::UseNotes;
 use bytes::Bytes;
 use citymesh_core::geo::GeoBbox;
@@ -38,6 +39,8 @@ pub struct SqliteTileStore {
     evicting: Arc<tokio::sync::Mutex<()>>,
     /// Rows read since their uses were last written.
     uses: Arc<UseNotes<(TileKey, String)>>,
+    /// What writes and uses are stamped with.
+    clock: Clock,
 }
 
 /// The condition that selects one key's row; [`bind_key`] binds its values in this order.
@@ -65,6 +68,12 @@ fn bind_key<'q>(query: Query<'q>, key: &'q TileKey, data_version: &'q str) -> Qu
 }
 
 impl SqliteTileStore {
+    /// The store with writes and uses stamped by `clock`.
+    pub fn with_clock(mut self, clock: Clock) -> Self {
+        self.clock = clock;
+        self
+    }
+
     /// An unbounded store (for `citymesh import`, which only deletes).
     pub fn new(pool: SqlitePool) -> Self {
         Self {
@@ -73,6 +82,7 @@ impl SqliteTileStore {
             used: Arc::new(AtomicU64::new(0)),
             evicting: Arc::new(tokio::sync::Mutex::new(())),
             uses: Arc::new(UseNotes::new(MAX_NOTED_USES)),
+            clock: Clock::system(),
         }
     }
 
@@ -120,7 +130,10 @@ impl SqliteTileStore {
     }
 
     fn note_use(&self, key: &TileKey, data_version: &str) {
-        if self.uses.note((*key, data_version.to_owned()), now_ms()) {
+        if self
+            .uses
+            .note((*key, data_version.to_owned()), self.clock.now_ms())
+        {
             let store = self.clone();
             tokio::spawn(async move { store.write_uses().await });
         }
@@ -158,7 +171,7 @@ impl SqliteTileStore {
         etag: &str,
     ) -> Result<(), sqlx::Error> {
         let b = key.tile.bounds();
-        let now = now_ms();
+        let now = self.clock.now_ms();
         let cost = bytes.len() as i64 + ROW_OVERHEAD;
         // Replacing a row: its cost leaves the count first.
         self.remove(key, data_version).await?;

@@ -3,6 +3,7 @@
 //! (`crate::db::on_pool!`), but eviction, which names rows as each backend does.
 //! Tested on both in `tests/it/storage_backends.rs`.
 
+use crate::clock::Clock;
 use crate::db::{Database, on_pool};
 use citymesh_core::geo::TileCoord;
 use std::sync::atomic::{AtomicI64, Ordering};
@@ -14,11 +15,8 @@ pub struct ImageryCache {
     max_bytes: u64,
     /// Bytes stored, as last counted (counted at start and after each eviction, grown by puts).
     stored: AtomicI64,
-}
-
-/// The system's time (Unix milliseconds): [`crate::clock::Clock`] where no other is injected.
-fn now_ms() -> i64 {
-    crate::clock::Clock::system().now_ms()
+    /// What fetches and uses are stamped with, and the time to live counted by.
+    clock: Clock,
 }
 
 impl ImageryCache {
@@ -29,12 +27,19 @@ impl ImageryCache {
             ttl,
             max_bytes,
             stored: AtomicI64::new(stored),
+            clock: Clock::system(),
         })
+    }
+
+    /// The cache with its rows stamped by `clock` (tests move a manual one).
+    pub fn with_clock(mut self, clock: Clock) -> Self {
+        self.clock = clock;
+        self
     }
 
     /// The stored bytes of a tile younger than the time to live.
     pub async fn get(&self, imagery_id: &str, t: TileCoord) -> sqlx::Result<Option<Vec<u8>>> {
-        let now = now_ms();
+        let now = self.clock.now_ms();
         let oldest = now.saturating_sub(i64::try_from(self.ttl.as_millis()).unwrap_or(i64::MAX));
         let sql = "UPDATE imagery_tiles SET last_used = $1 WHERE imagery_id = $2 AND z = $3 \
                    AND x = $4 AND y = $5 AND fetched_at >= $6 RETURNING bytes";
@@ -54,7 +59,7 @@ impl ImageryCache {
         if bytes.len() as u64 > self.max_bytes {
             return Ok(());
         }
-        let now = now_ms();
+        let now = self.clock.now_ms();
         let sql = "INSERT INTO imagery_tiles (imagery_id, z, x, y, bytes, fetched_at, last_used) \
                    VALUES ($1, $2, $3, $4, $5, $6, $7) ON CONFLICT (imagery_id, z, x, y) DO \
                    UPDATE SET bytes = excluded.bytes, fetched_at = excluded.fetched_at, \
