@@ -1,7 +1,7 @@
 //! The database every store lives in: SQLite on one machine (the default, `--cache-db`), or a
 //! PostgreSQL server shared by many replicas (`--database-url postgres://...`). Each store lives
 //! beside its user and is opened on a [`Database`]: its statements written once and run on
-//! either pool by `on_pool!`, writes begun by [`begin_write`] (`source/data_tiles/store/`,
+//! either pool by `on_pool!`, writes begun by [`BeginWrite`] (`source/data_tiles/store/`,
 //! `roofs/imagery/cache.rs`); the older stores still have one file per backend (`cache/store/`,
 //! `roofs/jobs/`).
 
@@ -55,13 +55,6 @@ impl BeginWrite for PgPool {
     async fn begin_write(&self) -> Result<sqlx::Transaction<'static, sqlx::Postgres>, sqlx::Error> {
         self.begin().await
     }
-}
-
-/// [`BeginWrite::begin_write`] on whichever pool `on_pool!` bound.
-pub(crate) async fn begin_write<P: BeginWrite>(
-    pool: &P,
-) -> Result<sqlx::Transaction<'static, P::Backend>, sqlx::Error> {
-    pool.begin_write().await
 }
 
 /// How long a statement waits for a lock, and a request for a connection.

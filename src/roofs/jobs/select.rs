@@ -55,6 +55,18 @@ pub fn select_buildings<R: Borrow<BuildingRecord>>(
     (jobs, skipped)
 }
 
+/// The buildings of `records` that `bbox` holds (the core's rule, [`holds`]); all without a box.
+pub fn held_by<'a, R: Borrow<BuildingRecord>>(
+    records: &'a [R],
+    bbox: Option<&GeoBbox>,
+) -> Vec<&'a BuildingRecord> {
+    records
+        .iter()
+        .map(R::borrow)
+        .filter(|r| bbox.is_none_or(|b| holds(b, r)))
+        .collect()
+}
+
 /// The jobs for the buildings `bbox` holds (the core's rule, [`holds`]; every building when
 /// there is no box), only those named in `wanted` when it is given, and the buildings left out
 /// by reason: those of [`select_buildings`] among the box's buildings, and `too_small` for
@@ -65,12 +77,7 @@ pub fn jobs_in_box<R: Borrow<BuildingRecord>>(
     selection: Selection,
     wanted: Option<&HashSet<&str>>,
 ) -> (Vec<NewJob>, BTreeMap<String, u64>) {
-    let in_box: Vec<&BuildingRecord> = records
-        .iter()
-        .map(R::borrow)
-        .filter(|r| bbox.is_none_or(|b| holds(b, r)))
-        .collect();
-    let (candidates, mut skipped) = select_buildings(&in_box, selection);
+    let (candidates, mut skipped) = select_buildings(&held_by(records, bbox), selection);
     let mut jobs = Vec::with_capacity(candidates.len());
     for job in candidates {
         if wanted.is_some_and(|w| !w.contains(job.osm_id.as_str())) {

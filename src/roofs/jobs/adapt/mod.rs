@@ -12,8 +12,7 @@ pub use run::{AdaptFailure, AdaptPolicy, AdaptationRun, Progress, fit_on_imagery
 pub use store::AdaptationStore;
 
 use super::queue::NewJob;
-use super::select::{Selection, select_buildings};
-use citymesh_core::building::in_box::holds;
+use super::select::{Selection, held_by, select_buildings};
 use citymesh_core::building::roof::RoofShape;
 use citymesh_core::geo::GeoBbox;
 use citymesh_core::osm::BuildingRecord;
@@ -116,12 +115,7 @@ pub fn tagged_examples<R: std::borrow::Borrow<BuildingRecord>>(
             Some((r.id.to_string(), RoofClass::of_shape(shape)?))
         })
         .collect();
-    let in_box: Vec<&BuildingRecord> = records
-        .iter()
-        .map(R::borrow)
-        .filter(|r| bbox.is_none_or(|b| holds(b, r)))
-        .collect();
-    let (jobs, _) = select_buildings(&in_box, Selection::All);
+    let (jobs, _) = select_buildings(&held_by(records, bbox), Selection::All);
     let mut taken = [0usize; 3];
     let mut out = Vec::new();
     for job in jobs {

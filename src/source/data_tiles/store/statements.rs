@@ -4,7 +4,7 @@
 //! row is picked for eviction (PostgreSQL skips rows another replica is deleting).
 
 use super::{DataOrigin, StoredDataTile, stored_of};
-use crate::db::{Database, on_pool};
+use crate::db::{BeginWrite as _, Database, on_pool};
 use bytes::Bytes;
 use citymesh_core::geo::TileCoord;
 use sqlx::Row;
@@ -53,7 +53,7 @@ pub(super) async fn write_uses(
 ) -> Result<(), sqlx::Error> {
     let sql = dialect(db).write_use;
     on_pool!(db, pool => {
-        let mut tx = crate::db::begin_write(pool).await?;
+        let mut tx = pool.begin_write().await?;
         for (t, at) in uses {
             sqlx::query(sql)
                 .bind(*at)
@@ -156,7 +156,7 @@ pub(super) struct NewRow<'a> {
 pub(super) async fn put(db: &Database, row: &NewRow<'_>) -> Result<Option<String>, sqlx::Error> {
     let previous_hash = dialect(db).previous_hash;
     on_pool!(db, pool => {
-        let mut tx = crate::db::begin_write(pool).await?;
+        let mut tx = pool.begin_write().await?;
         let previous = put_row!(&mut *tx, row, previous_hash);
         tx.commit().await?;
         Ok(previous)
