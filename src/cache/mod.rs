@@ -25,7 +25,6 @@ pub use region_cache::{RegionCache, Stopped};
 pub use roof_priors::{PRIORS_KEPT, RoofPriors};
 pub use scene_cache::{CachedScene, SceneCache};
 pub use store::{
-    DATA_CHANGED_CHANNEL, DataChangedNote, GenerationLock, GenerationTurn, PgTileStore,
-    SqliteTileStore, StoredTile, TileStore,
+    DATA_CHANGED_CHANNEL, DataChangedNote, GenerationLock, GenerationTurn, StoredTile, TileStore,
 };
 pub use tile_cache::{CacheLevel, CachedTile, TileCache, etag_header, etag_of};

@@ -125,10 +125,7 @@ impl TileCache {
 
     /// `sqlite` or `postgres`: where tiles are stored.
     pub fn backend(&self) -> &'static str {
-        match self.store {
-            TileStore::Sqlite(_) => "sqlite",
-            TileStore::Postgres(_) => "postgres",
-        }
+        self.store.backend()
     }
 
     /// Bytes the tiles and the box scenes in memory weigh now.

@@ -5,7 +5,7 @@
 
 use crate::common;
 
-use citymesh::cache::{GenerationTurn, PgTileStore, TileKey, TileStore};
+use citymesh::cache::{GenerationTurn, TileKey, TileStore};
 use citymesh::db::Database;
 use citymesh::roofs::imagery::ImageryCache;
 use citymesh::source::data_tiles::{DataOrigin, OsmTileStore};
@@ -255,11 +255,11 @@ async fn imagery_tiles_expire_and_the_least_recently_used_go_first_alike() {
 
 /// Two replicas' stores on one PostgreSQL (separate pools, as separate processes have).
 async fn two_replicas(pg: &Postgres) -> (TileStore, TileStore) {
-    let a = citymesh::db::open_postgres(&pg.url, 4).await.unwrap();
-    let b = citymesh::db::open_postgres(&pg.url, 4).await.unwrap();
+    let a = Database::Postgres(citymesh::db::open_postgres(&pg.url, 4).await.unwrap());
+    let b = Database::Postgres(citymesh::db::open_postgres(&pg.url, 4).await.unwrap());
     (
-        TileStore::Postgres(PgTileStore::bounded(a, u64::MAX, "a").await.unwrap()),
-        TileStore::Postgres(PgTileStore::bounded(b, u64::MAX, "b").await.unwrap()),
+        TileStore::open(&a, u64::MAX, "a").await.unwrap(),
+        TileStore::open(&b, u64::MAX, "b").await.unwrap(),
     )
 }
 
@@ -344,9 +344,7 @@ async fn a_replica_whose_wait_runs_out_or_whose_holder_gives_up_generates_itself
 async fn deleting_tiles_over_an_area_tells_every_listening_replica_in_the_same_transaction() {
     let pg = Postgres::start();
     let (a, b) = two_replicas(&pg).await;
-    let TileStore::Postgres(_) = &b else {
-        unreachable!()
-    };
+    assert_eq!(b.backend(), "postgres");
     let pool = citymesh::db::open_postgres(&pg.url, 2).await.unwrap();
     let mut listener = sqlx::postgres::PgListener::connect_with(&pool)
         .await
