@@ -9,7 +9,7 @@ use axum::http::header;
 use citymesh::roofs::classifier::{Passes, load_classifier};
 use citymesh::roofs::imagery::{Imagery, ImagerySpec};
 use citymesh::roofs::jobs::worker::{WorkerConfig, run_round};
-use citymesh::roofs::jobs::{RoofJobQueue, Selection, SqliteJobQueue, select_buildings};
+use citymesh::roofs::jobs::{JobQueue, Selection, select_buildings};
 use citymesh_core::geo::GeoBbox;
 use citymesh_core::osm::read_buildings;
 use criterion::{Criterion, criterion_group, criterion_main};
@@ -91,7 +91,9 @@ fn jobs(c: &mut Criterion) {
             let mut total = Duration::ZERO;
             for _ in 0..iters {
                 total += runtime.block_on(async {
-                    let queue = SqliteJobQueue::new(citymesh::db::open(":memory:").await.unwrap());
+                    let queue = JobQueue::new(&citymesh::db::Database::Sqlite(
+                        citymesh::db::open(":memory:").await.unwrap(),
+                    ));
                     queue
                         .enqueue(
                             "bench",

@@ -5,9 +5,7 @@ use super::load_classifier;
 use crate::cli::ClassifyArgs;
 use crate::roofs::classifier::{Prediction, RoofClassifier};
 use crate::roofs::jobs::worker::{WorkerConfig, run_round};
-use crate::roofs::jobs::{
-    JobQueue, RoofJobQueue, Selection, StoredPrediction, footprint_hash, jobs_in_box,
-};
+use crate::roofs::jobs::{JobQueue, Selection, StoredPrediction, footprint_hash, jobs_in_box};
 use crate::source::read_osm_file;
 use citymesh_core::building::roof::RoofShape;
 use citymesh_core::geo::GeoBbox;

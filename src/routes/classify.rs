@@ -8,7 +8,7 @@ use super::params::parse_bbox;
 use crate::error::{AppError, ErrorBody};
 use crate::pipeline::within_timeout;
 use crate::roofs::jobs::batch_budget::{Refusal, batch_bytes};
-use crate::roofs::jobs::{BatchCounts, BatchProgress, RoofJobQueue, Selection, jobs_in_box};
+use crate::roofs::jobs::{BatchCounts, BatchProgress, Selection, jobs_in_box};
 use crate::server::ClientAddr;
 use crate::state::AppState;
 use axum::Extension;

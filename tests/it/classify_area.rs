@@ -10,7 +10,7 @@ use citymesh::commands::classify::agreement;
 use citymesh::roofs::classifier::{Passes, RoofClassifier, load_classifier};
 use citymesh::roofs::imagery::{Imagery, ImagerySpec};
 use citymesh::roofs::jobs::worker::{WorkerConfig, run_round};
-use citymesh::roofs::jobs::{RoofJobQueue, Selection, SqliteJobQueue, select_buildings};
+use citymesh::roofs::jobs::{JobQueue, Selection, select_buildings};
 use citymesh_core::geo::GeoBbox;
 use citymesh_core::osm::{BuildingRecord, read_buildings};
 use std::collections::HashMap;
@@ -41,7 +41,9 @@ async fn classify(
     std::collections::BTreeMap<String, u64>,
     Vec<(Option<String>, citymesh::roofs::classifier::Prediction)>,
 ) {
-    let queue = SqliteJobQueue::new(citymesh::db::open(":memory:").await.unwrap());
+    let queue = JobQueue::new(&citymesh::db::Database::Sqlite(
+        citymesh::db::open(":memory:").await.unwrap(),
+    ));
     let (jobs, _) = select_buildings(records, Selection::All);
     let (batch, counts) = queue
         .enqueue(

@@ -1,14 +1,15 @@
 //! The roof job queue and the adaptations on SQLite and on PostgreSQL (work in progress, issue
-//! 27): each scenario is written once over [`RoofJobQueue`] and run on both backends; on
+//! 27): each scenario is written once over [`JobQueue`] and run on both backends; on
 //! PostgreSQL, the claims of two replicas' pools never take a job twice.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
 use crate::common;
 
+use citymesh::clock::Clock;
 use citymesh::db::Database;
 use citymesh::roofs::classifier::Prediction;
 use citymesh::roofs::jobs::adapt::{AdaptFailure, AdaptationStore, Lease};
-use citymesh::roofs::jobs::{MAX_ATTEMPTS, NewJob, PgJobQueue, RoofJobQueue, SqliteJobQueue};
+use citymesh::roofs::jobs::{JobQueue, MAX_ATTEMPTS, NewJob};
 use common::postgres::Postgres;
 use std::collections::{BTreeMap, HashSet};
 use std::time::Duration;
@@ -25,18 +26,25 @@ fn p() -> Prediction {
     Prediction::new([0.2, 0.7, 0.1])
 }
 
-async fn sqlite_queue() -> SqliteJobQueue {
-    SqliteJobQueue::new(citymesh::db::open(":memory:").await.unwrap())
+/// A queue on an SQLite database in memory, its leases stamped by `clock`.
+async fn sqlite_queue(clock: &Clock) -> JobQueue {
+    JobQueue::new(&Database::Sqlite(
+        citymesh::db::open(":memory:").await.unwrap(),
+    ))
+    .with_clock(clock.clone())
 }
 
 /// A PostgreSQL started for the test (stopped when the first is dropped) and a queue on it.
-async fn pg_queue() -> (Postgres, PgJobQueue) {
+async fn pg_queue(clock: &Clock) -> (Postgres, JobQueue) {
     let pg = Postgres::start();
     let pool = citymesh::db::open_postgres(&pg.url, 4).await.unwrap();
-    (pg, PgJobQueue::new(pool))
+    (
+        pg,
+        JobQueue::new(&Database::Postgres(pool)).with_clock(clock.clone()),
+    )
 }
 
-async fn a_building_is_queued_once_per_inputs<Q: RoofJobQueue>(q: Q) {
+async fn a_building_is_queued_once_per_inputs(q: JobQueue, _clock: Clock) {
     let jobs = [job(1), job(2), job(3)];
     let (_, first) = q
         .enqueue("b", "img", "m", &jobs, BTreeMap::new())
@@ -63,10 +71,9 @@ async fn a_building_is_queued_once_per_inputs<Q: RoofJobQueue>(q: Q) {
     assert_eq!(changed.queued, 1);
 }
 
-async fn a_lease_that_runs_out_gives_the_job_to_the_next_claim_and_it_completes_once<
-    Q: RoofJobQueue,
->(
-    q: Q,
+async fn a_lease_that_runs_out_gives_the_job_to_the_next_claim_and_it_completes_once(
+    q: JobQueue,
+    clock: Clock,
 ) {
     let (batch, _) = q
         .enqueue("b", "img", "m", &[job(1), job(2)], BTreeMap::new())
@@ -76,7 +83,7 @@ async fn a_lease_that_runs_out_gives_the_job_to_the_next_claim_and_it_completes_
     let dead = q.claim(10, Duration::from_millis(1)).await.unwrap();
     assert_eq!(dead.len(), 2);
     // Once the lease has run out, the next claim takes the same jobs again.
-    tokio::time::sleep(Duration::from_millis(20)).await;
+    clock.advance(Duration::from_millis(20));
     let taken = q.claim(10, Duration::from_secs(60)).await.unwrap();
     assert_eq!(
         taken.iter().map(|j| j.id).collect::<Vec<_>>(),
@@ -107,7 +114,7 @@ async fn a_lease_that_runs_out_gives_the_job_to_the_next_claim_and_it_completes_
     assert!(progress.finished);
 }
 
-async fn an_extended_lease_keeps_the_job_from_other_claims<Q: RoofJobQueue>(q: Q) {
+async fn an_extended_lease_keeps_the_job_from_other_claims(q: JobQueue, clock: Clock) {
     q.enqueue("b", "img", "m", &[job(1)], BTreeMap::new())
         .await
         .unwrap();
@@ -118,7 +125,7 @@ async fn an_extended_lease_keeps_the_job_from_other_claims<Q: RoofJobQueue>(q: Q
             .unwrap(),
         1
     );
-    tokio::time::sleep(Duration::from_millis(20)).await;
+    clock.advance(Duration::from_millis(20));
     // The first lease would have run out; the extended one holds.
     assert!(
         q.claim(10, Duration::from_secs(60))
@@ -135,7 +142,7 @@ async fn an_extended_lease_keeps_the_job_from_other_claims<Q: RoofJobQueue>(q: Q
     );
 }
 
-async fn failures_retry_up_to_the_limit_and_cancel_stops_queued_jobs<Q: RoofJobQueue>(q: Q) {
+async fn failures_retry_up_to_the_limit_and_cancel_stops_queued_jobs(q: JobQueue, _clock: Clock) {
     let (batch, _) = q
         .enqueue("b", "img", "m", &[job(1), job(2)], BTreeMap::new())
         .await
@@ -162,7 +169,8 @@ macro_rules! on_both_backends {
             $(
                 #[tokio::test]
                 async fn $scenario() {
-                    super::$scenario(super::sqlite_queue().await).await;
+                    let clock = super::Clock::manual_from_now();
+                    super::$scenario(super::sqlite_queue(&clock).await, clock).await;
                 }
             )*
         }
@@ -170,8 +178,9 @@ macro_rules! on_both_backends {
             $(
                 #[tokio::test]
                 async fn $scenario() {
-                    let (_pg, queue) = super::pg_queue().await;
-                    super::$scenario(queue).await;
+                    let clock = super::Clock::manual_from_now();
+                    let (_pg, queue) = super::pg_queue(&clock).await;
+                    super::$scenario(queue, clock).await;
                 }
             )*
         }
@@ -186,7 +195,7 @@ on_both_backends!(
 );
 
 /// Claims until one comes back empty, completing each job; answers the ids claimed.
-async fn claim_until_empty(q: PgJobQueue) -> Vec<i64> {
+async fn claim_until_empty(q: JobQueue) -> Vec<i64> {
     let mut ids = Vec::new();
     loop {
         let jobs = q.claim(5, Duration::from_secs(60)).await.unwrap();
@@ -205,8 +214,8 @@ async fn two_replicas_claiming_at_once_never_take_a_job_twice() {
     let pg = Postgres::start();
     let open = || citymesh::db::open_postgres(&pg.url, 5);
     let replicas = [
-        PgJobQueue::new(open().await.unwrap()),
-        PgJobQueue::new(open().await.unwrap()),
+        JobQueue::new(&Database::Postgres(open().await.unwrap())),
+        JobQueue::new(&Database::Postgres(open().await.unwrap())),
     ];
     let jobs: Vec<NewJob> = (1..=200).map(job).collect();
     let (_, counts) = replicas[0]

@@ -17,8 +17,7 @@
 //!
 //! Statements read the same on both databases (`$n` placeholders).
 
-use super::queue::JobError;
-use super::rows::now_ms;
+use super::job::JobError;
 use crate::db::{Database, on_pool};
 use sqlx::Row;
 use std::time::{Duration, Instant};
@@ -212,8 +211,9 @@ impl BatchBudget {
     }
 
     async fn sweep(&self) -> Result<u64, JobError> {
-        let cutoff =
-            now_ms().saturating_sub(i64::try_from(self.limits.ttl.as_millis()).unwrap_or(i64::MAX));
+        let cutoff = crate::clock::Clock::system()
+            .now_ms()
+            .saturating_sub(i64::try_from(self.limits.ttl.as_millis()).unwrap_or(i64::MAX));
         let n = self.expire(cutoff).await?;
         if let Ok(mut last) = self.last_sweep.lock() {
             *last = Some(Instant::now());

@@ -2,7 +2,8 @@
 //! prediction with the footprint it was made for. Loaded from the job store at start-up and kept
 //! current by the workers, so a tile request never queries SQLite for roofs.
 
-use super::queue::{JobError, RoofJobQueue};
+use super::job::JobError;
+use super::queue::JobQueue;
 use crate::roofs::classifier::Prediction;
 use std::collections::HashMap;
 use std::sync::RwLock;
@@ -25,8 +26,8 @@ pub struct PredictionIndex {
 
 impl PredictionIndex {
     /// Every stored prediction of `imagery_id` and `model_id`.
-    pub async fn load<Q: RoofJobQueue>(
-        queue: &Q,
+    pub async fn load(
+        queue: &JobQueue,
         imagery_id: &str,
         model_id: &str,
     ) -> Result<Self, JobError> {

@@ -1,7 +1,7 @@
 //! Which buildings of an area get a roof job (paper 2.2): buildings, not parts, without parts of
 //! their own, and (unless asked for every one) without a `roof:shape`.
 
-use super::queue::NewJob;
+use super::job::NewJob;
 use citymesh_core::building::cluster::part_of;
 use citymesh_core::building::in_box::{MIN_FOOTPRINT_M2, footprint_area_m2, holds};
 use citymesh_core::geo::GeoBbox;

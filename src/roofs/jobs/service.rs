@@ -2,10 +2,10 @@
 //! workers that run jobs when a classifier and an imagery service are configured.
 
 use super::adapt::{AdaptExample, AdaptPolicy, AdaptationRun, AdaptationStore, run_adaptation};
-use super::backend::JobQueue;
 use super::batch_budget::{BatchBudget, BatchLimits};
 use super::index::PredictionIndex;
-use super::queue::{JobError, RoofJobQueue};
+use super::job::JobError;
+use super::queue::JobQueue;
 use super::worker::{CurrentModel, RoundReport, SharedOnDone, WorkerConfig, run_worker};
 use crate::metrics::{Metrics, StateLabels};
 use crate::roofs::classifier::RoofClassifier;

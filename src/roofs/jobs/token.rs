@@ -1,7 +1,7 @@
 //! Names clients hold for server-side work (classification batches, adaptations): 128 random
 //! bits, so no client can guess another's.
 
-use super::queue::JobError;
+use super::job::JobError;
 
 /// 128 random bits as 32 lowercase hex digits.
 pub fn random_token() -> Result<String, JobError> {

@@ -4,7 +4,8 @@
 //! worker. Failures of one building fail that job (with a reason; retried when the cause may
 //! pass), never the others.
 
-use super::queue::{ClaimedJob, JobError, RoofJobQueue};
+use super::job::{ClaimedJob, JobError};
+use super::queue::JobQueue;
 use crate::roofs::classifier::{Prediction, RoofClassifier, classify_blocking};
 use crate::roofs::imagery::{Imagery, TileMemo, crop_footprint, prefetch_tiles};
 use citymesh_core::roof_image::Crop;
@@ -56,8 +57,8 @@ pub type SharedOnDone = Arc<dyn Fn(&ClaimedJob, &Prediction, f64) + Send + Sync>
 pub type CurrentModel = dyn Fn() -> Option<(Arc<dyn RoofClassifier>, SharedOnDone)> + Send + Sync;
 
 /// Claims and runs one round of jobs; `Ok(None)` when nothing was queued.
-pub async fn run_round<Q: RoofJobQueue>(
-    queue: &Q,
+pub async fn run_round(
+    queue: &JobQueue,
     imagery: &Imagery,
     classifier: &Arc<dyn RoofClassifier>,
     config: WorkerConfig,
@@ -85,8 +86,8 @@ pub async fn run_round<Q: RoofJobQueue>(
 }
 
 /// Runs claimed jobs to their end.
-async fn work_round<Q: RoofJobQueue>(
-    queue: &Q,
+async fn work_round(
+    queue: &JobQueue,
     imagery: &Imagery,
     classifier: &Arc<dyn RoofClassifier>,
     jobs: Vec<ClaimedJob>,
@@ -170,8 +171,8 @@ async fn crop_for(
 /// lease runs out); pauses `idle` when the queue is empty, no classifier is loaded or the store
 /// fails. Each round takes the classifier `current` gives then; `after_round` is told what each
 /// round did.
-pub async fn run_worker<Q: RoofJobQueue>(
-    queue: Q,
+pub async fn run_worker(
+    queue: JobQueue,
     imagery: Arc<Imagery>,
     current: Arc<CurrentModel>,
     config: WorkerConfig,

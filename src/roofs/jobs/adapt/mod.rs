@@ -11,7 +11,7 @@ mod store;
 pub use run::{AdaptFailure, AdaptPolicy, AdaptationRun, Progress, fit_on_imagery, run_adaptation};
 pub use store::AdaptationStore;
 
-use super::queue::NewJob;
+use super::job::NewJob;
 use super::select::{Selection, held_by, select_buildings};
 use citymesh_core::building::roof::RoofShape;
 use citymesh_core::geo::GeoBbox;

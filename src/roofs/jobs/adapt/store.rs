@@ -6,7 +6,6 @@ use super::{AdaptationStatus, ClassCounts, Lease};
 use crate::db::{Database, on_pool};
 use crate::roofs::classifier::head::RoofHead;
 use crate::roofs::jobs::JobError;
-use crate::roofs::jobs::rows::now_ms;
 use sqlx::{ColumnIndex, Decode, Row, Type};
 
 /// The adaptations in the server's database.
@@ -36,7 +35,7 @@ impl AdaptationStore {
             }
         };
         Ok(on_pool!(&self.db, pool => sqlx::query(sql)
-            .bind(now_ms())
+            .bind(crate::clock::Clock::system().now_ms())
             .execute(pool)
             .await?
             .rows_affected()))
@@ -66,7 +65,7 @@ impl AdaptationStore {
         examples: [usize; 3],
         lease: &Lease,
     ) -> Result<Option<String>, JobError> {
-        let now = now_ms();
+        let now = crate::clock::Clock::system().now_ms();
         let stale = "UPDATE roof_adaptations SET state = 'failed', error = 'its server stopped \
                      before it ended (its lease ran out); ask again', updated_at = $1 \
                      WHERE imagery_id = $2 AND state = 'running' \
@@ -105,7 +104,7 @@ impl AdaptationStore {
         let sql = "UPDATE roof_adaptations SET lease_until = $1 WHERE id = $2 AND owner = $3 \
                    AND state = 'running'";
         Ok(on_pool!(&self.db, pool => sqlx::query(sql)
-            .bind(lease.end(now_ms()))
+            .bind(lease.end(crate::clock::Clock::system().now_ms()))
             .bind(id)
             .bind(&lease.owner)
             .execute(pool)
@@ -119,7 +118,7 @@ impl AdaptationStore {
         let sql = "UPDATE roof_adaptations SET examples = $1, updated_at = $2 WHERE id = $3";
         on_pool!(&self.db, pool => sqlx::query(sql)
             .bind(serde_json::to_string(&examples).unwrap_or_default())
-            .bind(now_ms())
+            .bind(crate::clock::Clock::system().now_ms())
             .bind(id)
             .execute(pool)
             .await
@@ -147,7 +146,7 @@ impl AdaptationStore {
         let changed = on_pool!(&self.db, pool => sqlx::query(sql)
             .bind(to)
             .bind(why)
-            .bind(now_ms())
+            .bind(crate::clock::Clock::system().now_ms())
             .bind(id)
             .bind(&before)
             .execute(pool)
@@ -192,7 +191,7 @@ impl AdaptationStore {
         on_pool!(&self.db, pool => sqlx::query(sql)
             .bind(cropped as i64)
             .bind(failed as i64)
-            .bind(now_ms())
+            .bind(crate::clock::Clock::system().now_ms())
             .bind(id)
             .execute(pool)
             .await
@@ -248,7 +247,7 @@ impl AdaptationStore {
             .bind(&head_id)
             .bind(&report)
             .bind(error)
-            .bind(now_ms())
+            .bind(crate::clock::Clock::system().now_ms())
             .bind(id)
             .execute(pool)
             .await?

@@ -1,10 +1,9 @@
-//! What a roof job queue does, whatever stores it.
+//! A roof job and what the queue answers about jobs: buildings to classify, claimed jobs, stored
+//! predictions, batches and their progress.
 
 use crate::roofs::classifier::Prediction;
-use citymesh_core::geo::GeoBbox;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
-use std::time::Duration;
 
 /// Attempts a job gets before it is failed for good.
 pub const MAX_ATTEMPTS: i64 = 3;
@@ -103,79 +102,4 @@ pub enum JobError {
     Store(#[from] sqlx::Error),
     #[error("job store: a stored footprint is not valid JSON: {0}")]
     Corrupt(String),
-}
-
-/// The queue's contract.
-pub trait RoofJobQueue: Send + Sync {
-    /// Makes a batch and queues a job per building not yet queued or done for these inputs;
-    /// answers the batch's token and counts.
-    fn enqueue(
-        &self,
-        bbox: &str,
-        imagery_id: &str,
-        model_id: &str,
-        jobs: &[NewJob],
-        skipped: BTreeMap<String, u64>,
-    ) -> impl Future<Output = Result<(String, BatchCounts), JobError>> + Send;
-
-    /// Claims up to `n` jobs (queued, or running with a lease run out) for `lease`.
-    fn claim(
-        &self,
-        n: u32,
-        lease: Duration,
-    ) -> impl Future<Output = Result<Vec<ClaimedJob>, JobError>> + Send;
-
-    /// Extends the lease of the claim's jobs still running under it to `lease` from now; answers
-    /// how many it holds.
-    fn extend(
-        &self,
-        claim: i64,
-        lease: Duration,
-    ) -> impl Future<Output = Result<u64, JobError>> + Send;
-
-    /// Stores the prediction (which took `work_ms`) and marks the job done, in one transaction, if the job is still
-    /// this claim's (running, under the same claim); `false` when its lease ran out and another
-    /// claim took it, or it was cancelled: then nothing is stored, so a job is done exactly once.
-    fn complete(
-        &self,
-        job: &ClaimedJob,
-        prediction: Prediction,
-        work_ms: f64,
-    ) -> impl Future<Output = Result<bool, JobError>> + Send;
-
-    /// Jobs by state, over every batch.
-    fn states(&self) -> impl Future<Output = Result<BTreeMap<String, u64>, JobError>> + Send;
-
-    /// Gives the job back for another attempt, or fails it for good after [`MAX_ATTEMPTS`] or when
-    /// `retry` is false; `false` (and nothing changed) when the job is no longer this claim's.
-    fn fail(
-        &self,
-        job: &ClaimedJob,
-        reason: &str,
-        retry: bool,
-    ) -> impl Future<Output = Result<bool, JobError>> + Send;
-
-    /// The batch's progress, `None` if there is no such batch.
-    fn progress(
-        &self,
-        batch: &str,
-    ) -> impl Future<Output = Result<Option<BatchProgress>, JobError>> + Send;
-
-    /// Cancels the batch's queued jobs that no other live batch asked for; `None` if there is
-    /// no such batch.
-    fn cancel(&self, batch: &str) -> impl Future<Output = Result<Option<u64>, JobError>> + Send;
-
-    /// Every prediction made from `imagery_id` by `model_id`.
-    fn predictions_of(
-        &self,
-        imagery_id: &str,
-        model_id: &str,
-    ) -> impl Future<Output = Result<Vec<StoredPrediction>, JobError>> + Send;
-
-    /// Predictions whose footprint's box meets `bbox`, at most `limit`.
-    fn predictions(
-        &self,
-        bbox: &GeoBbox,
-        limit: u32,
-    ) -> impl Future<Output = Result<Vec<StoredPrediction>, JobError>> + Send;
 }

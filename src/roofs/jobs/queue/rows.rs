@@ -1,28 +1,14 @@
-//! What the SQLite and PostgreSQL queues share: the clock, claims, leases, rings as stored, and
-//! the rows they read back (the same columns on both backends).
+//! Claims, leases, rings as stored, and the rows the queue reads back (the same columns on both
+//! backends).
 
-use super::queue::{ClaimedJob, JobError, StoredPrediction};
 use crate::roofs::classifier::Prediction;
+use crate::roofs::jobs::job::{ClaimedJob, JobError, StoredPrediction};
 use sqlx::{ColumnIndex, Decode, Row, Type};
 use std::collections::BTreeMap;
 use std::time::Duration;
 
 /// Jobs upserted per transaction when a batch is queued.
 pub(super) const ENQUEUE_CHUNK: usize = 256;
-
-/// The columns [`prediction_of_row`] reads.
-macro_rules! prediction_columns {
-    () => {
-        "SELECT osm_id, footprint_hash, imagery_id, model_id, p_flat, p_gabled, p_hipped, \
-         footprint, work_ms FROM roof_predictions"
-    };
-}
-pub(super) use prediction_columns;
-
-/// Milliseconds since the Unix epoch.
-pub(super) fn now_ms() -> i64 {
-    crate::clock::Clock::system().now_ms()
-}
 
 /// When a lease taken at `now` (ms) for `lease` ends.
 pub(super) fn lease_end(now: i64, lease: Duration) -> i64 {
@@ -73,7 +59,7 @@ where
     })
 }
 
-/// A stored prediction from a row of [`prediction_columns`].
+/// A stored prediction from a row of `prediction_columns!`.
 pub(super) fn prediction_of_row<'r, R: Row>(r: &'r R) -> Result<StoredPrediction, JobError>
 where
     usize: ColumnIndex<R>,
