@@ -1,9 +1,8 @@
 //! The database every store lives in: SQLite on one machine (the default, `--cache-db`), or a
 //! PostgreSQL server shared by many replicas (`--database-url postgres://...`). Each store lives
 //! beside its user and is opened on a [`Database`]: its statements written once and run on
-//! either pool by `on_pool!`, writes begun by [`BeginWrite`] (`source/data_tiles/store/`,
-//! `roofs/imagery/cache.rs`); the older stores still have one file per backend (`cache/store/`,
-//! `roofs/jobs/`).
+//! either pool by `on_pool!`, writes begun by [`BeginWrite`] (`cache/store/`,
+//! `source/data_tiles/store/`, `roofs/imagery/cache.rs`, `roofs/jobs/queue/`).
 
 mod postgres;
 mod sqlite;
