@@ -78,8 +78,11 @@ async fn run_async(command: Command) -> anyhow::Result<()> {
             Ok(())
         }
         Command::Export(args) => {
-            let state = crate::server::build_state(&args.serve).await?;
-            export::run(&state, &args).await?;
+            // A generator alone: no tile cache, listener or roof workers.
+            let opened =
+                crate::server::open_generator(&args.serve, crate::clock::Clock::system(), "export")
+                    .await?;
+            export::run(&opened.generator, &args).await?;
             Ok(())
         }
         Command::Classify(args) => {

@@ -11,10 +11,10 @@
 
 pub mod target;
 
+use crate::cache::RegionCache;
 use crate::cli::{EncodingArg, ExportArgs, ExportFormat};
 use crate::error::AppError;
-use crate::pipeline::{self, Buildings, MeshOptions};
-use crate::state::AppState;
+use crate::pipeline::{self, Buildings, Generator, MeshOptions};
 use citymesh_core::geo::{GeoBbox, ImplicitTile, TileCoord};
 use citymesh_core::mesh::Encoding;
 use citymesh_core::scene::SceneArea;
@@ -40,8 +40,10 @@ pub struct ExportSummary {
     pub bytes: u64,
 }
 
-/// Runs the export `args` describes on `state` (a server's state, not serving).
-pub async fn run(state: &AppState, args: &ExportArgs) -> anyhow::Result<ExportSummary> {
+/// Runs the export `args` describes with `generator`.
+pub async fn run(generator: &Generator, args: &ExportArgs) -> anyhow::Result<ExportSummary> {
+    // The tree's measurement, made once and read by the tileset and the subtree.
+    let regions_cache = RegionCache::default();
     let bbox: GeoBbox = args
         .bbox
         .parse()
@@ -58,10 +60,9 @@ pub async fn run(state: &AppState, args: &ExportArgs) -> anyhow::Result<ExportSu
     // The content files, then the files that make the tree whole (written last).
     let (content, last): (Vec<Content>, Vec<Finishing>) = match args.format {
         ExportFormat::Tiles3d => {
-            let regions =
-                pipeline::tile_regions(&state.generator, &state.tiles.regions, bbox, false)
-                    .await
-                    .map_err(app_error)?;
+            let regions = pipeline::tile_regions(generator, &regions_cache, bbox, false)
+                .await
+                .map_err(app_error)?;
             // Every level has content: the leaves in full, the coarser levels simplified.
             let content = (0..=regions.leaf_level)
                 .flat_map(|level| {
@@ -78,10 +79,9 @@ pub async fn run(state: &AppState, args: &ExportArgs) -> anyhow::Result<ExportSu
             let tileset = tileset_json(bbox, &regions, tiling, "", "");
             let mut last = Vec::new();
             if tiling == Tiling::Implicit {
-                let subtree =
-                    pipeline::subtree(&state.generator, &state.tiles.regions, bbox, false)
-                        .await
-                        .map_err(app_error)?;
+                let subtree = pipeline::subtree(generator, &regions_cache, bbox, false)
+                    .await
+                    .map_err(app_error)?;
                 last.push(("subtrees/0/0/0.subtree".to_owned(), subtree.to_vec()));
             }
             last.push((
@@ -117,11 +117,10 @@ pub async fn run(state: &AppState, args: &ExportArgs) -> anyhow::Result<ExportSu
             if out.exists(&path).await? {
                 return Ok::<_, anyhow::Error>(false);
             }
-            let mesh = MeshOptions::new(&state.generator, encoding);
-            let generated =
-                pipeline::generate(&state.generator, area, Buildings::FromSource, None, mesh)
-                    .await
-                    .map_err(app_error)?;
+            let mesh = MeshOptions::new(generator, encoding);
+            let generated = pipeline::generate(generator, area, Buildings::FromSource, None, mesh)
+                .await
+                .map_err(app_error)?;
             out.put(&path, generated.glb.clone()).await?;
             Ok(true)
         }))
