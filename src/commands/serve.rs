@@ -68,7 +68,8 @@ pub async fn run(args: ServeArgs) -> anyhow::Result<()> {
         // Long work stops now; requests in flight finish.
         stopping.cancel();
     };
-    connections::serve(listener, crate::routes::app(state), limits, signal).await;
+    let metrics = state.generator.metrics.clone();
+    connections::serve(listener, crate::routes::app(state), limits, metrics, signal).await;
     // Tiles generated last are written to the database after their responses: finish those
     // writes.
     tiles.flush().await;

@@ -45,6 +45,12 @@ pub struct StateLabels {
 }
 
 #[derive(Clone, Debug, Hash, PartialEq, Eq, EncodeLabelSet)]
+pub struct SlotLabels {
+    /// `general`, or `reserved` (`--reserved-connections`, only `/health` and `/metrics`).
+    pub slot: &'static str,
+}
+
+#[derive(Clone, Debug, Hash, PartialEq, Eq, EncodeLabelSet)]
 pub struct ResultLabels {
     /// `ok`, or why not (`not_found`, `busy`, `timeout`, `too_large`, `not_an_image`,
     /// `bad_response`).
@@ -71,6 +77,8 @@ pub struct Metrics {
     pub memory_cache_bytes: Family<CacheNameLabels, prometheus_client::metrics::gauge::Gauge>,
     /// What this replica did with others on one PostgreSQL.
     pub replicas: ReplicaMetrics,
+    /// Client connections holding a slot now, by slot (a slot is free again once this falls).
+    pub connections_open: Family<SlotLabels, prometheus_client::metrics::gauge::Gauge>,
 }
 
 /// Counters of the work replicas share (all zero on SQLite but `roof_jobs_*`).
@@ -156,6 +164,12 @@ impl Default for Metrics {
         let imagery_fetches = Family::<ResultLabels, Counter>::default();
         let inference_seconds = Histogram::new(latency_buckets());
         let memory_cache_bytes = Family::default();
+        let connections_open = Family::default();
+        registry.register(
+            "connections_open",
+            "Client connections holding a slot now, by slot (general or reserved)",
+            connections_open.clone(),
+        );
         registry.register(
             "memory_cache_bytes",
             "Bytes each memory cache holds, weighed as it is bounded (cache=budget: --memory-mb)",
@@ -213,6 +227,7 @@ impl Default for Metrics {
             inference_seconds,
             memory_cache_bytes,
             replicas,
+            connections_open,
         }
     }
 }

@@ -12,6 +12,7 @@
 
 use super::parse_errors;
 use super::streams::Streams;
+use crate::metrics::{Metrics, SlotLabels};
 use axum::Router;
 use hyper_util::rt::{TokioExecutor, TokioIo, TokioTimer};
 use hyper_util::server::conn::auto::Builder;
@@ -81,6 +82,7 @@ pub async fn serve(
     listener: TcpListener,
     app: Router,
     limits: ConnectionLimits,
+    metrics: Arc<Metrics>,
     shutdown: impl Future<Output = ()>,
 ) {
     let permits = Arc::new(Semaphore::new(limits.max_connections));
@@ -131,6 +133,13 @@ pub async fn serve(
         let Ok((permit, is_reserved)) = taken else {
             break;
         };
+        let open = metrics
+            .connections_open
+            .get_or_create(&SlotLabels {
+                slot: if is_reserved { "reserved" } else { "general" },
+            })
+            .clone();
+        open.inc();
         let _ = stream.set_nodelay(true);
         let streams = Streams::new();
         let io = TokioIo::new(IdleTimeout::new(
@@ -171,7 +180,9 @@ pub async fn serve(
                     tracing::debug!("connection closed: no request open for too long");
                 }
             }
+            // The slot is free before the gauge says so.
             drop(permit);
+            open.dec();
         });
     }
     tokio::select! {

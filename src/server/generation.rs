@@ -96,7 +96,7 @@ pub async fn open_generator(
     let dem = tokio::task::spawn_blocking(move || DemStore::open(&dem_dir, memory.dem)).await?;
     let metrics = Arc::new(Metrics::default());
     let store = OsmTileStore::bounded(database.clone(), args.osm_store_mb.saturating_mul(1 << 20))
-        .with_clock(clock);
+        .with_clock(clock.clone());
     // Nothing configured at all: a procedural city, so a fresh `cargo run` shows something.
     let demo = args.osm.is_empty()
         && args.overpass_url.is_none()
@@ -135,15 +135,18 @@ pub async fn open_generator(
             let upstream = if args.offline {
                 None
             } else {
-                Some(Arc::new(OverpassClient::new(OverpassConfig {
-                    urls: overpass_urls,
-                    timeout: Duration::from_secs_f64(args.overpass_timeout_s),
-                    retries: args.overpass_retries,
-                    backoff: Duration::from_secs(1),
-                    max_concurrent: args.overpass_max_concurrent,
-                    max_bytes: args.overpass_max_mb.saturating_mul(1 << 20),
-                    calls_per_minute: args.overpass_calls_per_minute,
-                })?))
+                Some(Arc::new(
+                    OverpassClient::new(OverpassConfig {
+                        urls: overpass_urls,
+                        timeout: Duration::from_secs_f64(args.overpass_timeout_s),
+                        retries: args.overpass_retries,
+                        backoff: Duration::from_secs(1),
+                        max_concurrent: args.overpass_max_concurrent,
+                        max_bytes: args.overpass_max_mb.saturating_mul(1 << 20),
+                        calls_per_minute: args.overpass_calls_per_minute,
+                    })?
+                    .with_clock(clock),
+                ))
             };
             DataTileSource::new(
                 store,

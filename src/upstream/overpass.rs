@@ -6,11 +6,12 @@
 //! back when it is complete, valid Overpass JSON: a failed or truncated answer is never stored
 //! as data.
 
+use crate::clock::Clock;
 use citymesh_core::geo::GeoBbox;
 use reqwest::StatusCode;
 use std::collections::VecDeque;
 use std::sync::Mutex;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 use tokio::sync::Semaphore;
 
 /// The public main instance.
@@ -97,9 +98,17 @@ pub struct OverpassClient {
     config: OverpassConfig,
     permits: Semaphore,
     /// When the calls of the last minute started.
-    recent_calls: Mutex<VecDeque<Instant>>,
-    /// No call before this instant (upstream said 429 or 503).
-    paused_until: Mutex<Option<Instant>>,
+    /// When the calls of the last minute were made (Unix ms).
+    recent_calls: Mutex<VecDeque<i64>>,
+    /// No call before this time, Unix ms (upstream said 429 or 503).
+    paused_until: Mutex<Option<i64>>,
+    /// What the allowance and the pauses are measured by (tests move a manual one).
+    clock: Clock,
+}
+
+/// Milliseconds as a duration (none for a time past).
+fn ms(ms: i64) -> Duration {
+    Duration::from_millis(u64::try_from(ms).unwrap_or(0))
 }
 
 /// The Overpass QL query for the buildings of a box.
@@ -136,12 +145,20 @@ impl OverpassClient {
             config,
             recent_calls: Mutex::new(VecDeque::new()),
             paused_until: Mutex::new(None),
+            clock: Clock::system(),
         })
+    }
+
+    /// The client with its allowance and pauses measured by `clock`.
+    pub fn with_clock(mut self, clock: Clock) -> Self {
+        self.clock = clock;
+        self
     }
 
     /// Takes a call from this minute's allowance, or says why not and for how long.
     fn take_call(&self) -> Result<(), OverpassError> {
-        let now = Instant::now();
+        let now = self.clock.now_ms();
+        let minute = i64::try_from(MINUTE.as_millis()).unwrap_or(i64::MAX);
         if let Ok(paused) = self.paused_until.lock()
             && let Some(until) = *paused
             && until > now
@@ -150,7 +167,7 @@ impl OverpassClient {
                 reason: "the OpenStreetMap upstream asked this server to slow down (HTTP 429 or \
                          503), so it makes no call until the delay it gave has passed"
                     .to_owned(),
-                retry_after: until - now,
+                retry_after: ms(until - now),
             });
         }
         let Ok(mut recent) = self.recent_calls.lock() else {
@@ -158,7 +175,7 @@ impl OverpassClient {
         };
         while recent
             .front()
-            .is_some_and(|t| now.duration_since(*t) >= MINUTE)
+            .is_some_and(|t| now.saturating_sub(*t) >= minute)
         {
             recent.pop_front();
         }
@@ -170,7 +187,7 @@ impl OverpassClient {
                      (--overpass-calls-per-minute), and that many were made",
                     self.config.calls_per_minute
                 ),
-                retry_after: MINUTE.saturating_sub(now.duration_since(oldest)),
+                retry_after: ms(minute - now.saturating_sub(oldest)),
             });
         }
         recent.push_back(now);
@@ -179,7 +196,11 @@ impl OverpassClient {
 
     /// Upstream said 429 or 503: no call until its delay has passed.
     fn pause(&self, retry_after: Option<Duration>) {
-        let until = Instant::now() + retry_after.unwrap_or(DEFAULT_BACKOFF_AFTER_BUSY);
+        let delay = retry_after.unwrap_or(DEFAULT_BACKOFF_AFTER_BUSY);
+        let until = self
+            .clock
+            .now_ms()
+            .saturating_add(i64::try_from(delay.as_millis()).unwrap_or(i64::MAX));
         if let Ok(mut paused) = self.paused_until.lock() {
             *paused = Some(paused.map_or(until, |p| p.max(until)));
         }

@@ -720,7 +720,8 @@ fn d3_half_sent_headers_idle_connections_and_the_connection_cap() {
     // With two connections open, a third is not served until one closes.
     let a = TcpStream::connect(&addr).unwrap();
     let b = TcpStream::connect(&addr).unwrap();
-    std::thread::sleep(Duration::from_millis(300));
+    // The server accepts in arrival order, one client waiting for a slot at a time: A and B
+    // have the slots before C is accepted.
     let mut c = TcpStream::connect(&addr).unwrap();
     c.write_all(b"GET /health HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n")
         .unwrap();
@@ -742,6 +743,43 @@ fn d3_half_sent_headers_idle_connections_and_the_connection_cap() {
     );
     child.kill().unwrap();
     child.wait().unwrap();
+}
+
+/// Asks `/metrics` on the keep-alive connection `stream`; answers the connections open on
+/// general and on reserved slots.
+fn connections_open(stream: &mut TcpStream) -> (u64, u64) {
+    stream
+        .write_all(b"GET /metrics HTTP/1.1\r\nHost: x\r\n\r\n")
+        .unwrap();
+    let mut answer = Vec::new();
+    let mut buf = [0u8; 8192];
+    let (head_end, length) = loop {
+        let n = stream.read(&mut buf).unwrap();
+        assert!(n > 0, "closed before answering /metrics");
+        answer.extend_from_slice(&buf[..n]);
+        if let Some(end) = answer.windows(4).position(|w| w == b"\r\n\r\n") {
+            let head = String::from_utf8_lossy(&answer[..end]).to_lowercase();
+            let length = head
+                .lines()
+                .find_map(|l| l.strip_prefix("content-length:"))
+                .and_then(|v| v.trim().parse::<usize>().ok())
+                .expect("a content-length");
+            break (end + 4, length);
+        }
+    };
+    while answer.len() < head_end + length {
+        let n = stream.read(&mut buf).unwrap();
+        assert!(n > 0, "closed in the middle of /metrics");
+        answer.extend_from_slice(&buf[..n]);
+    }
+    let body = String::from_utf8_lossy(&answer[head_end..head_end + length]).into_owned();
+    let gauge = |slot: &str| {
+        let name = format!("citymesh_connections_open{{slot=\"{slot}\"}} ");
+        body.lines()
+            .find_map(|l| l.strip_prefix(name.as_str()))
+            .map_or(0, |v| v.trim().parse().unwrap())
+    };
+    (gauge("general"), gauge("reserved"))
 }
 
 /// Writes `head`, then trickles `body` a byte at a time, `pause` apart, reading between bytes;
@@ -876,16 +914,26 @@ fn d7_silent_connections_trickled_bodies_reserved_slots_and_early_413() {
 
     // Both general slots held by clients that send their headers slowly: /health still answers
     // on the reserved slot, and anything else there is a 503 that says why.
-    // The connections above close on the server's side a moment after their answers: let them
-    // give their slots back first, so the two below take both general slots.
-    std::thread::sleep(Duration::from_secs(1));
-    let mut held = Vec::new();
-    for _ in 0..2 {
-        let mut s = TcpStream::connect(&addr).unwrap();
-        s.write_all(b"GET /health HTTP/1.1\r\n").unwrap();
-        held.push(s);
+    // The connections above close on the server's side a moment after their answers. A
+    // keep-alive client asks /metrics until it is the only connection open (every other slot
+    // is free again), then starts a request it never finishes; the second client takes the
+    // other general slot (clients are accepted in arrival order).
+    let mut first = TcpStream::connect(&addr).unwrap();
+    first
+        .set_read_timeout(Some(Duration::from_secs(10)))
+        .unwrap();
+    let mut open = (0, 0);
+    for _ in 0..10_000 {
+        open = connections_open(&mut first);
+        if open == (1, 0) {
+            break;
+        }
     }
-    std::thread::sleep(Duration::from_millis(300));
+    assert_eq!(open, (1, 0), "connections still open (general, reserved)");
+    first.write_all(b"GET /health HTTP/1.1\r\n").unwrap();
+    let mut second = TcpStream::connect(&addr).unwrap();
+    second.write_all(b"GET /health HTTP/1.1\r\n").unwrap();
+    let held = [first, second];
     let ask = |path: &str| {
         raw(format!("GET {path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n").into_bytes())
     };

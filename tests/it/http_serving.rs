@@ -345,7 +345,17 @@ async fn upstream_failures_answer_clearly_store_nothing_and_recover() {
     let url = start_stub(stub.clone()).await;
     let db = tempfile::tempdir().unwrap();
     let file = db.path().join("c.sqlite");
-    let app = online_app(&file, &url).await;
+    // The upstream's pauses are measured by this clock: the test moves it past a Retry-After.
+    let clock = citymesh::clock::Clock::manual_from_now();
+    let args = [
+        "--overpass-url",
+        &url,
+        "--overpass-retries",
+        "0",
+        "--overpass-timeout-s",
+        "0.5",
+    ];
+    let app = common::app_with_clock(&dem_dir(), &file, &args, clock.clone()).await;
     for (mode, status, code, retry_after) in [
         (
             Mode::ServerError,
@@ -389,7 +399,7 @@ async fn upstream_failures_answer_clearly_store_nothing_and_recover() {
     assert_eq!(held.json()["error"], "upstream_held_back");
     assert_eq!(stub.count(), 4);
     // Past it, the data comes.
-    tokio::time::sleep(std::time::Duration::from_millis(1100)).await;
+    clock.advance(std::time::Duration::from_millis(1100));
     let a = get(&app, TILE).await;
     assert_eq!(a.status, StatusCode::OK);
     assert_eq!(stored_data_tiles(&file).await, 1);
