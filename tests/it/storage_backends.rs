@@ -263,6 +263,24 @@ async fn two_replicas(pg: &Postgres) -> (TileStore, TileStore) {
     )
 }
 
+/// Returns once a session of `pg` waits for an advisory lock (polled in `pg_locks`).
+async fn lock_awaited(pg: &Postgres) {
+    let pool = citymesh::db::open_postgres(&pg.url, 1).await.unwrap();
+    for _ in 0..6_000 {
+        let waiting: i64 = sqlx::query_scalar(
+            "SELECT COUNT(*) FROM pg_locks WHERE locktype = 'advisory' AND NOT granted",
+        )
+        .fetch_one(&pool)
+        .await
+        .unwrap();
+        if waiting > 0 {
+            return;
+        }
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    panic!("no session waited for the advisory lock");
+}
+
 #[tokio::test]
 async fn a_replica_missing_a_tile_another_generates_waits_for_its_row() {
     let pg = Postgres::start();
@@ -279,9 +297,9 @@ async fn a_replica_missing_a_tile_another_generates_waits_for_its_row() {
     // B misses while A generates: it waits for A's row instead of generating.
     let waiting = tokio::spawn({
         let b = b.clone();
-        async move { b.turn(&k, "v1", Duration::from_secs(5)).await.unwrap() }
+        async move { b.turn(&k, "v1", Duration::from_secs(60)).await.unwrap() }
     });
-    tokio::time::sleep(Duration::from_millis(200)).await;
+    lock_awaited(&pg).await;
     assert!(!waiting.is_finished(), "B must wait while A holds the lock");
     a.put(&k, "v1", b"the tile", "\"e1\"", Some(lock))
         .await
@@ -326,9 +344,9 @@ async fn a_replica_whose_wait_runs_out_or_whose_holder_gives_up_generates_itself
     // A gives up (its generation failed): a waiting B gets the lock and generates.
     let waiting = tokio::spawn({
         let b = b.clone();
-        async move { b.turn(&k, "v1", Duration::from_secs(5)).await.unwrap() }
+        async move { b.turn(&k, "v1", Duration::from_secs(60)).await.unwrap() }
     });
-    tokio::time::sleep(Duration::from_millis(200)).await;
+    lock_awaited(&pg).await;
     drop(lock);
     assert!(matches!(
         waiting.await.unwrap(),
