@@ -222,6 +222,8 @@ async fn a_building_carries_its_osm_identity_and_tags_in_every_kind_of_glb() {
         "height": "12", "min_height": "0", "levels": "4", "roof_shape": "flat",
         "roof_source": "tag", "roof_probability": "-1", "wall_colour": "#e8e0d0",
         "roof_colour": "#6a8a48",
+        // What Cesium OSM Buildings' styles and apps read (the centre is checked below).
+        "elementId": "142104398", "elementType": "way", "cesium_estimatedHeight": "12",
     })
     .as_object()
     .unwrap()
@@ -237,7 +239,16 @@ async fn a_building_carries_its_osm_identity_and_tags_in_every_kind_of_glb() {
     for uri in uris {
         let answer = get(&app, &uri).await;
         assert_eq!(answer.status, StatusCode::OK, "{uri}");
-        let row = row_of(&answer.body, "142104398");
+        let mut row = row_of(&answer.body, "142104398");
+        // The centre of the way's bounding box, as pyosmium reads its six nodes: longitude
+        // 8.3935053 to 8.3938173, latitude 49.0437411 to 49.0442034.
+        for (key, want) in [
+            ("cesium_longitude", 8.3936613),
+            ("cesium_latitude", 49.04397225),
+        ] {
+            let got: f64 = row.remove(key).unwrap().as_str().unwrap().parse().unwrap();
+            assert!((got - want).abs() < 1e-9, "{key} {got} in {uri}");
+        }
         // roof_probability is left out when no building in the file was classified.
         let mut expected = want.clone();
         if !row.contains_key("roof_probability") {

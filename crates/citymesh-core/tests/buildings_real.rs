@@ -152,6 +152,8 @@ fn pbf_and_overpass_json_give_the_same_mesh() {
         let mut stats = s.buildings.clone();
         for f in &mut stats.features {
             f.height = (f.height * 1e4).round() / 1e4;
+            // Centres to 1e-9 degrees (0.1 mm).
+            f.centre = f.centre.map(|v| (v * 1e9).round() / 1e9);
         }
         stats
     };

@@ -305,6 +305,13 @@ pub fn feature_rows(glb: &[u8]) -> Vec<serde_json::Map<String, Value>> {
                         .map(|c| f32::from_le_bytes(c.try_into().unwrap()).to_string())
                         .collect()
                 }
+                ("SCALAR", Some("FLOAT64")) => {
+                    assert_eq!(values.len(), 8 * count, "{name}");
+                    values
+                        .chunks_exact(8)
+                        .map(|c| f64::from_le_bytes(c.try_into().unwrap()).to_string())
+                        .collect()
+                }
                 ("SCALAR", Some("INT64")) => {
                     assert_eq!(values.len(), 8 * count, "{name}");
                     values

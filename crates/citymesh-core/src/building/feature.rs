@@ -2,6 +2,8 @@
 //! property table (`EXT_structural_metadata`) that the building's triangles point at through
 //! their feature ids (`EXT_mesh_features`).
 
+use super::cluster::record_bounds;
+use super::in_box::bounds_centre;
 use super::params::{BuildingParams, ShapeSource};
 use super::tags::BuildingTags;
 use crate::mesh::Rgb;
@@ -63,6 +65,9 @@ pub struct BuildingFeature {
     pub roof_origin: RoofOrigin,
     pub wall_colour: Rgb,
     pub roof_colour: Rgb,
+    /// The centre of the footprint's bounding box, degrees (`[lon, lat]`): the point the
+    /// buildings a box holds are decided by.
+    pub centre: [f64; 2],
 }
 
 impl BuildingFeature {
@@ -98,6 +103,10 @@ impl BuildingFeature {
             roof_origin,
             wall_colour: params.wall_colour,
             roof_colour: params.roof_colour,
+            centre: {
+                let (lon, lat) = bounds_centre(record_bounds(record));
+                [lon, lat]
+            },
         }
     }
 }
@@ -112,6 +121,23 @@ const fn property(
         name,
         kind,
         description,
+        semantic: None,
+    }
+}
+
+/// A property Cesium OSM Buildings' styles and apps read, under the name they read it by (its
+/// id when that is an identifier, else the semantic CesiumJS styles look up).
+const fn cesium(
+    name: &'static str,
+    semantic: Option<&'static str>,
+    kind: PropertyType,
+    description: &'static str,
+) -> PropertyDef {
+    PropertyDef {
+        name,
+        kind,
+        description,
+        semantic,
     }
 }
 
@@ -181,6 +207,38 @@ pub static BUILDING_CLASS: ClassDef = ClassDef {
             PropertyType::String,
             "Roof colour, #rrggbb (sRGB)",
         ),
+        // The names Cesium OSM Buildings carries, so its styles and pick handlers work as they
+        // are.
+        cesium(
+            "elementId",
+            None,
+            PropertyType::Int64,
+            "OSM element id (as Cesium OSM Buildings names it)",
+        ),
+        cesium(
+            "elementType",
+            None,
+            PropertyType::String,
+            "OSM element type: way or relation (as Cesium OSM Buildings names it)",
+        ),
+        cesium(
+            "cesium_estimatedHeight",
+            Some("cesium#estimatedHeight"),
+            PropertyType::Float32 { no_data: None },
+            "Total height above the ground, metres (styles read it as cesium#estimatedHeight)",
+        ),
+        cesium(
+            "cesium_latitude",
+            Some("cesium#latitude"),
+            PropertyType::Float64,
+            "Latitude of the footprint's centre, degrees (styles read it as cesium#latitude)",
+        ),
+        cesium(
+            "cesium_longitude",
+            Some("cesium#longitude"),
+            PropertyType::Float64,
+            "Longitude of the footprint's centre, degrees (styles read it as cesium#longitude)",
+        ),
     ],
 };
 
@@ -221,6 +279,21 @@ pub fn property_table(features: &[BuildingFeature]) -> PropertyTable {
             }),
             strings(&|f| f.wall_colour.hex()),
             strings(&|f| f.roof_colour.hex()),
+            Column::Int64(
+                features
+                    .iter()
+                    .map(|f| match f.id {
+                        OsmId::Way(id) | OsmId::Relation(id) => id,
+                    })
+                    .collect(),
+            ),
+            strings(&|f| match f.id {
+                OsmId::Way(_) => "way".into(),
+                OsmId::Relation(_) => "relation".into(),
+            }),
+            floats(&|f| f.height as f32),
+            Column::Float64(features.iter().map(|f| f.centre[1]).collect()),
+            Column::Float64(features.iter().map(|f| f.centre[0]).collect()),
         ],
     }
 }

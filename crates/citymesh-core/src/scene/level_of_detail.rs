@@ -1,15 +1,14 @@
-//! Coarser content for the coarser levels of the 3D Tiles tree. At `k` levels above the leaves
-//! (tiles 2^k times as wide), a tile holds every group its square holds, simplified by one rule:
+//! Coarser content for the coarser levels of the 3D Tiles tree. Above the leaves, a tile holds
+//! every group its square holds, simplified by one rule:
 //!
-//! - a building or part whose footprint is smaller than 40 m² x 4^(k-1) is left out (40 m² one
-//!   level up, 160 m² two levels up...: what would cover a pixel or two at the distance the
-//!   level is drawn from);
-//! - every other roof is flattened at its mean height, halfway between eaves and top;
+//! - every building and part is kept, so a block of small houses is still a block from afar
+//!   (leaving the small ones out emptied whole districts at the distance a client draws the
+//!   coarse levels from);
+//! - a roof is flattened at its mean height, halfway between eaves and top;
 //! - the ground is a 16 x 16 grid over the tile (the leaves keep every DEM cell).
 //!
-//! Its geometric error is the largest height a client does not see at that level: a dropped
-//! building's, half a flattened roof's, or the ground grid's distance from the model at its
-//! cells' centres.
+//! Its geometric error is the largest height a client does not see at that level: half a
+//! flattened roof's, or the coarse ground's distance from the model at its cells' centres.
 
 use crate::building::RoofMethod;
 use crate::building::generate::{RecordOutline, record_outline};
@@ -17,9 +16,6 @@ use crate::geo::{GeoBbox, LocalFrame};
 use crate::osm::BuildingRecord;
 use crate::terrain::ElevationModel;
 use std::borrow::Cow;
-
-/// The footprint below which a building is left out one level above the leaves (m²).
-const MIN_FOOTPRINT_M2: f64 = 40.0;
 
 /// How coarse a tile's content is: levels above the leaves (0: the leaves, full detail).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
@@ -34,8 +30,6 @@ pub enum Simplified {
     Kept,
     /// Its roof flattened: half its rise is not drawn.
     Flattened { hidden_m: f64 },
-    /// Left out: its whole height is not drawn.
-    Dropped { hidden_m: f64 },
 }
 
 impl LevelOfDetail {
@@ -46,39 +40,28 @@ impl LevelOfDetail {
         self.above_leaves == 0
     }
 
-    /// Footprints smaller than this are left out (m²).
-    pub fn min_footprint_m2(self) -> f64 {
-        if self.is_full() {
-            return 0.0;
-        }
-        MIN_FOOTPRINT_M2 * 4f64.powi(i32::from(self.above_leaves) - 1)
-    }
-
-    /// The record as this level draws it (`None`: left out), and what that hides.
+    /// The record as this level draws it, and what that hides.
     pub fn simplify<'a>(
         self,
         record: Cow<'a, BuildingRecord>,
         frame: &LocalFrame,
         roof_method: RoofMethod,
-    ) -> (Option<Cow<'a, BuildingRecord>>, Simplified) {
+    ) -> (Cow<'a, BuildingRecord>, Simplified) {
         if self.is_full() {
-            return (Some(record), Simplified::Kept);
+            return (record, Simplified::Kept);
         }
         let Some(RecordOutline {
-            area,
             height,
             min_height,
             roof_height,
+            ..
         }) = record_outline(&record, frame, roof_method)
         else {
             // The generator will skip it and say why.
-            return (Some(record), Simplified::Kept);
+            return (record, Simplified::Kept);
         };
-        if area < self.min_footprint_m2() {
-            return (None, Simplified::Dropped { hidden_m: height });
-        }
         if roof_height <= 0.0 {
-            return (Some(record), Simplified::Kept);
+            return (record, Simplified::Kept);
         }
         let mut flat = record.into_owned();
         let mean = height - roof_height / 2.0;
@@ -87,7 +70,7 @@ impl LevelOfDetail {
         flat.tags
             .insert("min_height".into(), format!("{min_height:.3}"));
         (
-            Some(Cow::Owned(flat)),
+            Cow::Owned(flat),
             Simplified::Flattened {
                 hidden_m: roof_height / 2.0,
             },

@@ -203,7 +203,7 @@ impl<'a> SceneRequest<'a> {
                 }
                 chosen
                     .into_iter()
-                    .filter_map(|r| self.detail.simplify(r, &frame, self.roof_method).0)
+                    .map(|r| self.detail.simplify(r, &frame, self.roof_method).0)
                     .collect()
             })
             .filter(|g: &Vec<_>| !g.is_empty())
@@ -217,8 +217,8 @@ impl<'a> SceneRequest<'a> {
     }
 
     /// The largest height this request's level of detail does not draw (its geometric error,
-    /// m): a dropped building's, half a flattened roof's, or the coarse ground's distance from
-    /// the model. 0 at full detail.
+    /// m): half a flattened roof's, or the coarse ground's distance from the model. 0 at full
+    /// detail.
     pub fn hidden_height(&self, model: &ElevationModel) -> f64 {
         if self.detail.is_full() {
             return 0.0;
@@ -233,9 +233,7 @@ impl<'a> SceneRequest<'a> {
                     .1
                 {
                     Simplified::Kept => 0.0,
-                    Simplified::Flattened { hidden_m } | Simplified::Dropped { hidden_m } => {
-                        hidden_m
-                    }
+                    Simplified::Flattened { hidden_m } => hidden_m,
                 };
                 worst = worst.max(hidden);
             }

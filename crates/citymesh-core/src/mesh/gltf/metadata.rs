@@ -22,6 +22,8 @@ pub enum PropertyType {
     String,
     /// 32-bit float, with a value meaning "none".
     Float32 { no_data: Option<i32> },
+    /// 64-bit float (degrees of latitude and longitude), always given.
+    Float64,
     /// 64-bit signed integer.
     Int64,
 }
@@ -29,9 +31,13 @@ pub enum PropertyType {
 /// One property of a class.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct PropertyDef {
+    /// The property's id (an identifier: letters, digits and `_`).
     pub name: &'static str,
     pub kind: PropertyType,
     pub description: &'static str,
+    /// The semantic clients may also look it up by (CesiumJS styles do: a name that is no
+    /// identifier, like `cesium#estimatedHeight`, is reached this way).
+    pub semantic: Option<&'static str>,
 }
 
 /// A class of features and its properties, in column order.
@@ -70,11 +76,19 @@ impl ClassDef {
                         def.insert("required".into(), json!(true));
                     }
                 }
+                PropertyType::Float64 => {
+                    def.insert("type".into(), json!("SCALAR"));
+                    def.insert("componentType".into(), json!("FLOAT64"));
+                    def.insert("required".into(), json!(true));
+                }
                 PropertyType::Int64 => {
                     def.insert("type".into(), json!("SCALAR"));
                     def.insert("componentType".into(), json!("INT64"));
                     def.insert("required".into(), json!(true));
                 }
+            }
+            if let Some(semantic) = p.semantic {
+                def.insert("semantic".into(), json!(semantic));
             }
             properties.insert(p.name.into(), Value::Object(def));
         }
@@ -92,6 +106,7 @@ impl ClassDef {
 pub enum Column {
     Strings(Vec<String>),
     Float32(Vec<f32>),
+    Float64(Vec<f64>),
     Int64(Vec<i64>),
 }
 
@@ -114,6 +129,7 @@ impl Column {
         match self {
             Column::Strings(v) => v.len(),
             Column::Float32(v) => v.len(),
+            Column::Float64(v) => v.len(),
             Column::Int64(v) => v.len(),
         }
     }
@@ -177,6 +193,10 @@ impl PropertyTable {
                     let data: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
                     json!({"values": add(&data, views)})
                 }
+                Column::Float64(values) => {
+                    let data: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+                    json!({"values": add(&data, views)})
+                }
                 Column::Int64(values) => {
                     let data: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
                     json!({"values": add(&data, views)})
@@ -211,16 +231,19 @@ mod tests {
                 name: "label",
                 kind: PropertyType::String,
                 description: "a label",
+                semantic: None,
             },
             PropertyDef {
                 name: "size",
                 kind: PropertyType::Float32 { no_data: Some(-1) },
                 description: "a size",
+                semantic: Some("thing#size"),
             },
             PropertyDef {
                 name: "id",
                 kind: PropertyType::Int64,
                 description: "an id",
+                semantic: None,
             },
         ],
     };
@@ -261,6 +284,8 @@ mod tests {
         assert_eq!(ext["propertyTables"][0]["count"], 3);
         let schema = &ext["schema"]["classes"]["thing"]["properties"];
         assert_eq!(schema["size"]["noData"], -1);
+        assert_eq!(schema["size"]["semantic"], "thing#size");
+        assert!(schema["label"].get("semantic").is_none());
         assert_eq!(schema["id"]["componentType"], "INT64");
         assert_eq!(bin.len() % 4, 0);
         // Optional columns with nothing in them are left out (a view may not be empty).
