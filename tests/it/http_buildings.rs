@@ -243,8 +243,8 @@ async fn a_building_carries_its_osm_identity_and_tags_in_every_kind_of_glb() {
         // The centre of the way's bounding box, as pyosmium reads its six nodes: longitude
         // 8.3935053 to 8.3938173, latitude 49.0437411 to 49.0442034.
         for (key, want) in [
-            ("cesium_longitude", 8.3936613),
-            ("cesium_latitude", 49.04397225),
+            ("cesium_longitude", 8.393_661_3),
+            ("cesium_latitude", 49.043_972_25),
         ] {
             let got: f64 = row.remove(key).unwrap().as_str().unwrap().parse().unwrap();
             assert!((got - want).abs() < 1e-9, "{key} {got} in {uri}");
