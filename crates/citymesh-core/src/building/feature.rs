@@ -125,19 +125,17 @@ const fn property(
     }
 }
 
-/// A property Cesium OSM Buildings' styles and apps read, under the name they read it by (its
-/// id when that is an identifier, else the semantic CesiumJS styles look up).
-const fn cesium(
+/// A property CesiumJS styles also read by `semantic` (a name that is no identifier, like
+/// `cesium#estimatedHeight`).
+const fn styled(
     name: &'static str,
-    semantic: Option<&'static str>,
+    semantic: &'static str,
     kind: PropertyType,
     description: &'static str,
 ) -> PropertyDef {
     PropertyDef {
-        name,
-        kind,
-        description,
-        semantic,
+        semantic: Some(semantic),
+        ..property(name, kind, description)
     }
 }
 
@@ -209,33 +207,31 @@ pub static BUILDING_CLASS: ClassDef = ClassDef {
         ),
         // The names Cesium OSM Buildings carries, so its styles and pick handlers work as they
         // are.
-        cesium(
+        property(
             "elementId",
-            None,
             PropertyType::Int64,
             "OSM element id (as Cesium OSM Buildings names it)",
         ),
-        cesium(
+        property(
             "elementType",
-            None,
             PropertyType::String,
             "OSM element type: way or relation (as Cesium OSM Buildings names it)",
         ),
-        cesium(
+        styled(
             "cesium_estimatedHeight",
-            Some("cesium#estimatedHeight"),
+            "cesium#estimatedHeight",
             PropertyType::Float32 { no_data: None },
             "Total height above the ground, metres (styles read it as cesium#estimatedHeight)",
         ),
-        cesium(
+        styled(
             "cesium_latitude",
-            Some("cesium#latitude"),
+            "cesium#latitude",
             PropertyType::Float64,
             "Latitude of the footprint's centre, degrees (styles read it as cesium#latitude)",
         ),
-        cesium(
+        styled(
             "cesium_longitude",
-            Some("cesium#longitude"),
+            "cesium#longitude",
             PropertyType::Float64,
             "Longitude of the footprint's centre, degrees (styles read it as cesium#longitude)",
         ),
@@ -248,21 +244,24 @@ pub fn property_table(features: &[BuildingFeature]) -> PropertyTable {
         |f: &dyn Fn(&BuildingFeature) -> String| Column::Strings(features.iter().map(f).collect());
     let floats =
         |f: &dyn Fn(&BuildingFeature) -> f32| Column::Float32(features.iter().map(f).collect());
+    // Written under citymesh's names and again under Cesium OSM Buildings'.
+    let types = strings(&|f| match f.id {
+        OsmId::Way(_) => "way".into(),
+        OsmId::Relation(_) => "relation".into(),
+    });
+    let ids = Column::Int64(
+        features
+            .iter()
+            .map(|f| match f.id {
+                OsmId::Way(id) | OsmId::Relation(id) => id,
+            })
+            .collect(),
+    );
     PropertyTable {
         class: &BUILDING_CLASS,
         columns: vec![
-            strings(&|f| match f.id {
-                OsmId::Way(_) => "way".into(),
-                OsmId::Relation(_) => "relation".into(),
-            }),
-            Column::Int64(
-                features
-                    .iter()
-                    .map(|f| match f.id {
-                        OsmId::Way(id) | OsmId::Relation(id) => id,
-                    })
-                    .collect(),
-            ),
+            types.clone(),
+            ids.clone(),
             strings(&|f| f.building.clone()),
             strings(&|f| f.name.clone().unwrap_or_default()),
             strings(&|f| f.address.clone().unwrap_or_default()),
@@ -279,18 +278,8 @@ pub fn property_table(features: &[BuildingFeature]) -> PropertyTable {
             }),
             strings(&|f| f.wall_colour.hex()),
             strings(&|f| f.roof_colour.hex()),
-            Column::Int64(
-                features
-                    .iter()
-                    .map(|f| match f.id {
-                        OsmId::Way(id) | OsmId::Relation(id) => id,
-                    })
-                    .collect(),
-            ),
-            strings(&|f| match f.id {
-                OsmId::Way(_) => "way".into(),
-                OsmId::Relation(_) => "relation".into(),
-            }),
+            ids,
+            types,
             floats(&|f| f.height as f32),
             Column::Float64(features.iter().map(|f| f.centre[1]).collect()),
             Column::Float64(features.iter().map(|f| f.centre[0]).collect()),
