@@ -1,5 +1,5 @@
 //! Invalidation across replicas sharing one PostgreSQL: a data change deletes the stored tiles
-//! over its area and announces the area in the same transaction (`store/postgres.rs`); every
+//! over its area and announces the area in the same transaction (`store/mod.rs:TileStore::delete_overlapping`); every
 //! other replica hears it here and drops what it holds of the area in memory (parsed data,
 //! building sets, priors, tiles, scenes). While the listener is disconnected announcements are
 //! lost, so each (re)connection drops every memory cache.
