@@ -47,6 +47,8 @@ pub struct ServerState {
     /// Where data tiles, generated tiles, jobs and predictions are kept.
     pub database: crate::db::Database,
     pub tiles: Arc<TileCache>,
+    /// The world tileset's tile summaries (made in the background).
+    pub summaries: Arc<crate::cache::Summaries>,
     /// Generation and what it needs: source, DEM, slots, limits, metrics, roof settings,
     /// predictions and priors (also what the other handlers read those from).
     pub generator: crate::pipeline::Generator,

@@ -42,6 +42,8 @@ pub enum TileId {
     Implicit { root: Region, tile: ImplicitTile },
     /// A box (`/scene`).
     Bbox(Region),
+    /// A content tile of the world tileset (`/3dtiles/world/{z}/{x}/{y}.glb`).
+    World(TileCoord),
 }
 
 impl TileId {
@@ -51,6 +53,7 @@ impl TileId {
             TileId::Xyz(_) => "xyz",
             TileId::Implicit { .. } => "implicit",
             TileId::Bbox(_) => "bbox",
+            TileId::World(_) => "world",
         }
     }
 
@@ -60,13 +63,14 @@ impl TileId {
             TileId::Xyz(t) => SceneArea::Xyz(t),
             TileId::Implicit { root, tile } => SceneArea::Implicit { root: root.0, tile },
             TileId::Bbox(b) => SceneArea::Bbox(b.0),
+            TileId::World(t) => SceneArea::World(t),
         }
     }
 
     /// The ground the tile covers: a data change over it makes it stale.
     pub fn bounds(&self) -> GeoBbox {
         match self {
-            TileId::Xyz(t) => t.bounds(),
+            TileId::Xyz(t) | TileId::World(t) => t.bounds(),
             TileId::Implicit { root, tile } => tile.bbox(&root.0).unwrap_or(root.0),
             TileId::Bbox(b) => b.0,
         }
@@ -122,6 +126,11 @@ impl TileKey {
             root: Region(root),
             tile,
         })
+    }
+
+    /// A content tile of the world tileset, plain, roofs from tags.
+    pub fn world(t: TileCoord) -> Self {
+        Self::new(TileId::World(t))
     }
 
     /// A box scene (`/scene`), plain, roofs from tags.

@@ -17,6 +17,7 @@ pub mod replica_invalidation;
 mod roof_priors;
 mod scene_cache;
 mod store;
+mod summaries;
 mod tile_cache;
 
 pub use budget::MemoryBudget;
@@ -27,4 +28,5 @@ pub use scene_cache::{CachedScene, SceneCache};
 pub use store::{
     DATA_CHANGED_CHANNEL, DataChangedNote, GenerationLock, GenerationTurn, StoredTile, TileStore,
 };
+pub use summaries::{Summaries, SummaryProgress, keep_summaries};
 pub use tile_cache::{CacheLevel, CachedTile, TileCache, etag_header, etag_of};

@@ -23,6 +23,9 @@ pub struct Health {
     /// The roof classifier's model id (sha256 of the ONNX file) when it is loaded
     /// (`--roof-classifier`), else null.
     pub roof_classifier: Option<String>,
+    /// How far the world tileset's summaries are made (`GET /3dtiles/tileset.json` without a
+    /// box answers 503 until `ready`).
+    pub world: crate::cache::SummaryProgress,
 }
 
 /// How the database answered.
@@ -73,5 +76,6 @@ pub async fn health(State(state): State<AppState>) -> Result<Json<Health>, AppEr
         dem_files: state.generator.dem.file_count(),
         buildings: state.generator.source.summary(),
         roof_classifier: state.classifier.as_ref().map(|c| c.model_id().to_owned()),
+        world: state.summaries.progress(),
     }))
 }

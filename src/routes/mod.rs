@@ -26,6 +26,7 @@ mod schemas;
 mod tiles;
 mod tiles3d;
 mod vendor;
+mod world;
 
 use crate::error::{AppError, ErrorBody};
 use crate::state::AppState;
@@ -98,6 +99,7 @@ fn api_router() -> OpenApiRouter<AppState> {
         .routes(routes!(tiles3d::tileset))
         .routes(routes!(tiles3d::subtree))
         .routes(routes!(tiles3d::content))
+        .routes(routes!(world::world_file))
         .routes(routes!(classify::post_classify))
         .routes(routes!(classify::predictions))
         .routes(routes!(classify::get_batch, classify::delete_batch))

@@ -23,8 +23,8 @@ use utoipa::IntoParams;
 #[derive(Debug, Deserialize, IntoParams)]
 #[into_params(parameter_in = Query)]
 pub struct TilesetQuery {
-    /// The region as `minLon,minLat,maxLon,maxLat`; default: the extent of the served buildings
-    /// (the demo city, or the `--osm` files). Required when buildings come from data tiles.
+    /// The region as `minLon,minLat,maxLon,maxLat`, for a tileset over that part alone;
+    /// without it, the world tileset over everything the server holds.
     #[param(example = "8.400,49.010,8.409,49.017")]
     pub bbox: Option<String>,
     /// Where the content's roof shapes come from: `osm` (the default), `classified` or
@@ -36,7 +36,8 @@ pub struct TilesetQuery {
     /// tile's URI).
     #[param(inline)]
     pub encoding: Option<EncodingParam>,
-    /// How the tileset lists its tiles: `explicit` (the default) or `implicit`.
+    /// How a tileset over a `bbox` lists its tiles: `explicit` (the default) or `implicit`
+    /// (the world tileset is always explicit, in nested files).
     #[param(inline)]
     pub tiling: Option<TilingParam>,
 }
@@ -66,7 +67,7 @@ impl From<TilingParam> for Tiling {
 }
 
 /// The query a content URI carries: what the tileset was asked for beyond the defaults.
-fn content_query(query: &TilesetQuery) -> String {
+pub(super) fn content_query(query: &TilesetQuery) -> String {
     let mut parts = Vec::new();
     match query.roofs.unwrap_or_default() {
         RoofsParam::Osm => {}
@@ -83,7 +84,7 @@ fn content_query(query: &TilesetQuery) -> String {
 
 /// Content tiles are meshopt unless asked otherwise: the smallest, and every 3D Tiles client
 /// citymesh serves decodes it.
-const CONTENT_ENCODING: Encoding = Encoding::Meshopt;
+pub(super) const CONTENT_ENCODING: Encoding = Encoding::Meshopt;
 
 /// The tree's root: the `bbox` given, else the extent of the served buildings.
 fn root_for(state: &AppState, text: Option<&str>) -> Result<GeoBbox, AppError> {
@@ -179,6 +180,9 @@ pub async fn tileset(
     query: Result<Query<TilesetQuery>, QueryRejection>,
 ) -> Result<Response, AppError> {
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
+    if query.bbox.is_none() {
+        return super::world::world_tileset(&state, &query).await;
+    }
     let root = root_for(&state, query.bbox.as_deref())?;
     let pitched = query.roofs.unwrap_or_default() != RoofsParam::Osm;
     let regions =

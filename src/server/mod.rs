@@ -53,6 +53,8 @@ pub async fn build_state_with_clock(args: &ServeArgs, clock: Clock) -> anyhow::R
         tiles.clone(),
         generator.priors.clone(),
     );
+    let summaries = crate::cache::Summaries::new();
+    crate::cache::keep_summaries(generator.clone(), summaries.clone(), tiles.clone());
     if let db::Database::Postgres(pool) = &database {
         let caches = replica_invalidation::ReplicaCaches {
             source: generator.source.clone(),
@@ -72,6 +74,7 @@ pub async fn build_state_with_clock(args: &ServeArgs, clock: Clock) -> anyhow::R
         cors_origins: Arc::new(args.cors_origin.clone()),
         memory_budget: memory,
         tiles,
+        summaries,
         max_upload_bytes: args.max_upload_mb.saturating_mul(1 << 20) as usize,
         geojson_limits: citymesh_core::geojson::GeoJsonLimits {
             max_features: args.max_features,

@@ -110,6 +110,13 @@ impl BuildingSource for FileSource {
         self.set.extent()
     }
 
+    fn data_tiles<'a>(&'a self) -> BoxFuture<'a, Result<Vec<TileCoord>, SourceError>> {
+        let zoom = super::data_tiles::data_tile::DATA_ZOOM;
+        let tiles: std::collections::BTreeSet<TileCoord> =
+            self.set.clusters().iter().map(|c| c.xyz_tile(zoom)).collect();
+        Box::pin(async move { Ok(tiles.into_iter().collect()) })
+    }
+
     /// All the files' buildings teach one prior, up to [`MAX_WHOLE_PRIOR`] buildings and the
     /// priors' memory share; larger file sets are cut into tiles ([`FileSource::bound_priors`]),
     /// so a fit stays bounded and its prior is kept.

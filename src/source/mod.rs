@@ -126,6 +126,10 @@ pub trait BuildingSource: Send + Sync {
     /// The extent of all buildings when the source knows it up front (files), else `None`.
     fn extent(&self) -> Option<GeoBbox>;
 
+    /// The data tiles (`data_tiles::data_tile::DATA_ZOOM`) that hold buildings: the stored
+    /// ones, or those holding the files' groups. The world tileset is summarised over them.
+    fn data_tiles<'a>(&'a self) -> BoxFuture<'a, Result<Vec<TileCoord>, SourceError>>;
+
     /// Which area's tags teach the roof prior of a building whose outline's first node is at
     /// (`lon`, `lat`).
     fn prior_scope(&self, lon: f64, lat: f64) -> PriorScope;

@@ -25,6 +25,7 @@ mod http_procedural;
 mod http_roofs_inferred;
 mod http_serving;
 mod http_slopes;
+mod http_world;
 mod import_abuse;
 mod job_queue_backends;
 mod replicas;

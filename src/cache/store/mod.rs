@@ -426,7 +426,7 @@ impl TileStore {
 pub(crate) fn columns(key: &TileKey) -> (&'static str, String, i64, i64, i64) {
     let scheme = key.tile.scheme();
     match key.tile {
-        TileId::Xyz(t) => (
+        TileId::Xyz(t) | TileId::World(t) => (
             scheme,
             String::new(),
             i64::from(t.z),

@@ -417,6 +417,10 @@ impl BuildingSource for DataTileSource {
         None
     }
 
+    fn data_tiles<'a>(&'a self) -> BoxFuture<'a, Result<Vec<TileCoord>, SourceError>> {
+        Box::pin(async move { Ok(self.store.stored_tiles().await?) })
+    }
+
     fn prior_scope(&self, lon: f64, lat: f64) -> PriorScope {
         PriorScope::DataTile(TileCoord::containing(data_tile::DATA_ZOOM, lon, lat))
     }

@@ -279,3 +279,17 @@ pub fn serve_binary(db: &Path, extra: &[&str]) -> (std::process::Child, String, 
     };
     (child, addr, lines)
 }
+
+/// Waits until the server's world tileset is summarised (`/health`'s `world.ready`), as a
+/// client would: summaries are made in the background when the server starts. Polls the state
+/// (at most 6,000 times, 10 ms apart) rather than waiting a fixed time.
+pub async fn world_ready(app: &axum::Router) -> serde_json::Value {
+    for _ in 0..6000 {
+        let health = get(app, "/health").await.json();
+        if health["world"]["ready"] == true {
+            return health["world"].clone();
+        }
+        tokio::time::sleep(std::time::Duration::from_millis(10)).await;
+    }
+    panic!("the world tileset was never summarised");
+}

@@ -21,6 +21,9 @@ use std::borrow::Cow;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct LevelOfDetail {
     pub above_leaves: u8,
+    /// Above the leaves, keep the DEM's ground (the world tree's tiles of buildings, whose
+    /// ground is about as fine as the DEM) rather than the coarse grid.
+    pub dem_ground: bool,
 }
 
 /// What simplifying a record did, for the level's geometric error.
@@ -38,6 +41,11 @@ impl LevelOfDetail {
 
     pub fn is_full(self) -> bool {
         self.above_leaves == 0
+    }
+
+    /// Whether the ground is the coarse grid rather than the DEM's.
+    pub fn grid_ground(self) -> bool {
+        !self.is_full() && !self.dem_ground
     }
 
     /// The record as this level draws it, and what that hides.

@@ -19,7 +19,7 @@ use crate::geo::Region;
 use crate::geo::{GeoBbox, LocalFrame};
 use crate::mesh::{EncodedGlb, Encoding, Mesh, Placement, encode_glb};
 use crate::osm::BuildingRecord;
-use crate::terrain::{ElevationModel, GroundReport, build_coarse_ground, build_ground};
+use crate::terrain::{CellMask, ElevationModel, GroundReport, build_coarse_ground, build_ground};
 use std::ops::Range;
 
 /// How the ground of a scene is drawn.
@@ -29,6 +29,8 @@ pub enum GroundDetail {
     Dem,
     /// A regular grid of this many cells per side (coarse levels of detail).
     Grid(u32),
+    /// A 16 x 16 grid, only its cells the mask holds (the world tree's blocks: ground where data is).
+    Cells(CellMask),
 }
 
 /// How a scene is drawn, beyond its box and buildings.
@@ -140,7 +142,12 @@ impl Scene {
         let mut mesh = Mesh::default();
         let ground = match rules.ground {
             GroundDetail::Dem => build_ground(model, bbox, &frame, &mut mesh),
-            GroundDetail::Grid(cells) => build_coarse_ground(model, bbox, &frame, cells, &mut mesh),
+            GroundDetail::Grid(cells) => {
+                build_coarse_ground(model, bbox, &frame, cells, None, &mut mesh)
+            }
+            GroundDetail::Cells(mask) => {
+                build_coarse_ground(model, bbox, &frame, 16, Some(&mask), &mut mesh)
+            }
         };
         let ctx = BuildingContext {
             frame: &frame,

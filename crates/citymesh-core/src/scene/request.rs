@@ -11,7 +11,8 @@ use crate::building::{BuildingRules, BuildingStats, HeightBase, RoofMethod, Roof
 use crate::geo::{BboxError, GeoBbox, ImplicitTile, LocalFrame, TileCoord};
 use crate::mesh::{EncodedGlb, Encoding, Placement};
 use crate::osm::BuildingRecord;
-use crate::terrain::{ElevationModel, GroundReport};
+use crate::terrain::{CellMask, ElevationModel, GroundReport};
+use crate::tiles3d::LEAF_ZOOM;
 use std::borrow::Cow;
 
 /// An area to generate.
@@ -25,6 +26,14 @@ pub enum SceneArea {
     /// A tile of the implicit quadtree over `root` (3D Tiles content): the ground of the tile
     /// and, whole, the groups it holds; placed in ECEF.
     Implicit { root: GeoBbox, tile: ImplicitTile },
+    /// A tile of the world tree (`crate::tiles3d::world`), placed in ECEF: from the data tiles'
+    /// zoom down, the ground cut to the tile and, whole, the groups whose representative point
+    /// lies in it, roofs flattened above the leaves; above it, every group of the set it is
+    /// given (the tile's blocks) on a coarse ground grid.
+    World(TileCoord),
+    /// A tile of the world tree above the data tiles: every group of the set it is given (the
+    /// tile's blocks) on a coarse ground grid over the cells `ground` holds, in ECEF.
+    Blocks { tile: TileCoord, ground: CellMask },
     /// Every group of a given set of buildings (procedural or uploaded), whole, on the ground of
     /// the box.
     Given(GeoBbox),
@@ -36,7 +45,9 @@ impl SceneArea {
     pub fn bbox(&self) -> Result<GeoBbox, BboxError> {
         match self {
             SceneArea::Bbox(b) | SceneArea::Given(b) => Ok(*b),
-            SceneArea::Xyz(t) => Ok(t.bounds()),
+            SceneArea::Xyz(t) | SceneArea::World(t) | SceneArea::Blocks { tile: t, .. } => {
+                Ok(t.bounds())
+            }
             SceneArea::Implicit { root, tile } => tile.bbox(root),
         }
     }
@@ -52,7 +63,9 @@ impl SceneArea {
     /// How the result is placed on the Earth.
     pub fn placement(&self) -> Placement {
         match self {
-            SceneArea::Implicit { .. } => Placement::Ecef,
+            SceneArea::Implicit { .. } | SceneArea::World(_) | SceneArea::Blocks { .. } => {
+                Placement::Ecef
+            }
             _ => Placement::LocalEnu,
         }
     }
@@ -64,16 +77,31 @@ impl SceneArea {
             SceneArea::Bbox(b) => set.clusters_intersecting(b),
             SceneArea::Xyz(t) => set.clusters_of_tile(t),
             SceneArea::Implicit { root, tile } => set.clusters_of_implicit_tile(root, tile),
-            SceneArea::Given(_) => set.clusters().iter().collect(),
+            SceneArea::World(t) => set.clusters_of_tile(t),
+            SceneArea::Blocks { .. } | SceneArea::Given(_) => set.clusters().iter().collect(),
         };
         // Implicit tiles above the leaves are coarser (docs/method.md, levels of detail).
         let detail = match self {
             SceneArea::Implicit { root, tile } => LevelOfDetail {
                 above_leaves: ImplicitTile::leaf_level(root).saturating_sub(tile.level),
+                dem_ground: false,
+            },
+            SceneArea::World(t) => LevelOfDetail {
+                above_leaves: LEAF_ZOOM.saturating_sub(t.z),
+                dem_ground: true,
+            },
+            SceneArea::Blocks { tile, .. } => LevelOfDetail {
+                above_leaves: LEAF_ZOOM.saturating_sub(tile.z),
+                dem_ground: false,
             },
             _ => LevelOfDetail::default(),
         };
+        let ground_cells = match self {
+            SceneArea::Blocks { ground, .. } => Some(*ground),
+            _ => None,
+        };
         Ok(SceneRequest {
+            ground_cells,
             set,
             bbox,
             groups,
@@ -112,6 +140,8 @@ pub struct SceneRequest<'a> {
     pub heights: HeightBase,
     /// How hipped, gabled and pyramidal roofs are laid over their footprints.
     pub roof_method: RoofMethod,
+    /// At a coarse level, the cells of the 16 x 16 ground grid to draw (`None`: all).
+    pub ground_cells: Option<CellMask>,
 }
 
 /// A generated, encoded scene and what went into it.
@@ -272,10 +302,10 @@ impl<'a> SceneRequest<'a> {
         workers: usize,
     ) -> (Scene, bool) {
         let records = self.group_records();
-        let ground = if self.detail.is_full() {
-            GroundDetail::Dem
-        } else {
-            GroundDetail::Grid(LevelOfDetail::GROUND_CELLS)
+        let ground = match (self.detail.grid_ground(), self.ground_cells) {
+            (false, _) => GroundDetail::Dem,
+            (true, Some(mask)) => GroundDetail::Cells(mask),
+            (true, None) => GroundDetail::Grid(LevelOfDetail::GROUND_CELLS),
         };
         let rules = SceneRules {
             border: self.border,

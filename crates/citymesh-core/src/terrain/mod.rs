@@ -11,7 +11,7 @@ mod hgt;
 mod model;
 mod range;
 
-pub use coarse_ground::build_coarse_ground;
+pub use coarse_ground::{CellMask, build_coarse_ground};
 pub use elevation::corner_height;
 pub use ground::{GroundReport, build_ground};
 pub use hgt::{HgtError, HgtTile, VOID, hgt_name, parse_hgt_name};

@@ -49,6 +49,38 @@ impl ElevationModel {
         }
         if lo.is_finite() { (lo, hi) } else { (0.0, 0.0) }
     }
+
+    /// `(min, max)` of the placement height over `bbox`: every grid sample in it and one step
+    /// around it, and its corners. A ground mesh over the box (full or coarse, both interpolate
+    /// the samples) lies within it: what a tile's bounding region takes for its ground.
+    pub fn height_range_in(&self, bbox: &crate::geo::GeoBbox) -> (f64, f64) {
+        let mut lo = f64::INFINITY;
+        let mut hi = f64::NEG_INFINITY;
+        let mut visit = |h: f64| {
+            lo = lo.min(h);
+            hi = hi.max(h);
+        };
+        for (lon, lat) in [
+            (bbox.min_lon(), bbox.min_lat()),
+            (bbox.max_lon(), bbox.min_lat()),
+            (bbox.min_lon(), bbox.max_lat()),
+            (bbox.max_lon(), bbox.max_lat()),
+        ] {
+            visit(self.ground_height(lon, lat));
+        }
+        if self.is_empty() {
+            return (lo, hi);
+        }
+        let p = f64::from(self.per_degree());
+        let (i0, i1) = ((bbox.min_lon() * p).floor() as i64 - 1, (bbox.max_lon() * p).ceil() as i64 + 1);
+        let (j0, j1) = ((bbox.min_lat() * p).floor() as i64 - 1, (bbox.max_lat() * p).ceil() as i64 + 1);
+        for j in j0..=j1 {
+            for i in i0..=i1 {
+                visit(self.ground_height(i as f64 / p, j as f64 / p));
+            }
+        }
+        (lo, hi)
+    }
 }
 
 #[cfg(test)]

@@ -5,7 +5,9 @@
 
 mod regions;
 mod subtree;
+mod summary;
 mod tileset;
+mod world;
 
 pub use crate::geo::Region;
 pub use regions::{TileRegions, measure_regions};
@@ -14,3 +16,5 @@ pub use subtree::{
     write_subtree,
 };
 pub use tileset::{ImplicitLayout, Tiling, tileset_json};
+pub use summary::{BLOCK_CELLS, BLOCK_ZOOM, Block, DATA_ZOOM, LEAF_ZOOM, TileSummary};
+pub use world::{LEVELS_PER_FILE, WorldTile, children_of, world_tileset_json};

@@ -184,6 +184,11 @@ impl OsmTileStore {
     pub async fn count(&self) -> Result<i64, sqlx::Error> {
         statements::count(&self.db).await
     }
+
+    /// Every stored data tile (12 bytes of memory each: a country's are a few MB).
+    pub async fn stored_tiles(&self) -> Result<Vec<TileCoord>, sqlx::Error> {
+        statements::stored_tiles(&self.db).await
+    }
 }
 
 /// Data tiles written in one transaction (see [`OsmTileStore::import_writer`]).

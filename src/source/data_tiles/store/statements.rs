@@ -179,3 +179,25 @@ pub(super) async fn count(db: &Database) -> Result<i64, sqlx::Error> {
     let sql = "SELECT COUNT(*) FROM osm_data_tiles";
     on_pool!(db, pool => sqlx::query(sql).fetch_one(pool).await.map(|r| r.get(0)))
 }
+
+/// Every stored data tile's coordinates.
+pub(super) async fn stored_tiles(db: &Database) -> Result<Vec<TileCoord>, sqlx::Error> {
+    let sql = "SELECT z, x, y FROM osm_data_tiles ORDER BY z, x, y";
+    let rows: Vec<(i64, i64, i64)> = on_pool!(db, pool => sqlx::query(sql)
+        .fetch_all(pool)
+        .await?
+        .iter()
+        .map(|r| (r.get(0), r.get(1), r.get(2)))
+        .collect());
+    Ok(rows
+        .into_iter()
+        .filter_map(|(z, x, y)| {
+            TileCoord::new(
+                u32::try_from(z).ok()?,
+                u32::try_from(x).ok()?,
+                u32::try_from(y).ok()?,
+            )
+            .ok()
+        })
+        .collect())
+}

@@ -1,0 +1,274 @@
+//! The world tileset's tile summaries (`citymesh_core::tiles3d::TileSummary`): one per data tile
+//! that holds buildings and one per coarser tile above them, each made from its four children,
+//! so a tileset file, and a coarse content tile, reads a bounded number of summaries and never
+//! the data tiles under it.
+//!
+//! They are made in the background when the server starts (data tiles first, then each zoom up
+//! to the root) and again over an area whose data changed; `/health` says how far it got. A
+//! tileset file asked before its summaries exist answers 503 with `Retry-After`, not a tree
+//! with holes.
+
+use crate::pipeline::Generator;
+use crate::source::{AreaBuildings, SourceError};
+use citymesh_core::geo::{GeoBbox, TileCoord};
+use citymesh_core::tiles3d::{BLOCK_ZOOM, DATA_ZOOM, TileSummary, WorldTile, children_of};
+use futures_util::StreamExt;
+use std::collections::{BTreeSet, HashMap};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, RwLock};
+
+/// Summaries made at once (each on the blocking pool).
+const CONCURRENCY: usize = 2;
+
+/// How far making the summaries got.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, utoipa::ToSchema)]
+pub struct SummaryProgress {
+    /// Data tiles summarised so far, of `data_tiles`.
+    pub done: usize,
+    pub data_tiles: usize,
+    /// Every summary up to the root is made.
+    pub ready: bool,
+    /// Summaries held (data tiles and the tiles above them).
+    pub held: usize,
+}
+
+/// The summaries of every tile of the world tree that holds buildings.
+#[derive(Default)]
+pub struct Summaries {
+    tiles: RwLock<HashMap<TileCoord, Arc<TileSummary>>>,
+    done: AtomicUsize,
+    data_tiles: AtomicUsize,
+    ready: AtomicBool,
+}
+
+impl Summaries {
+    pub fn new() -> Arc<Self> {
+        Arc::new(Self::default())
+    }
+
+    pub fn progress(&self) -> SummaryProgress {
+        SummaryProgress {
+            done: self.done.load(Ordering::Relaxed),
+            data_tiles: self.data_tiles.load(Ordering::Relaxed),
+            ready: self.ready.load(Ordering::Relaxed),
+            held: self.read().len(),
+        }
+    }
+
+    pub fn is_ready(&self) -> bool {
+        self.ready.load(Ordering::Relaxed)
+    }
+
+    fn read(&self) -> std::sync::RwLockReadGuard<'_, HashMap<TileCoord, Arc<TileSummary>>> {
+        self.tiles.read().unwrap_or_else(|p| p.into_inner())
+    }
+
+    fn write(&self) -> std::sync::RwLockWriteGuard<'_, HashMap<TileCoord, Arc<TileSummary>>> {
+        self.tiles.write().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// The summary of a tile at or above the data tiles.
+    pub fn get(&self, t: &TileCoord) -> Option<Arc<TileSummary>> {
+        self.read().get(t).cloned()
+    }
+
+    /// The tile as the world tileset lists it, if it exists: at or above the data tiles when
+    /// its summary exists, below them when its data tile's does.
+    pub fn world_tile(&self, t: TileCoord) -> Option<WorldTile> {
+        let own = if t.z > DATA_ZOOM {
+            let shift = t.z - DATA_ZOOM;
+            TileCoord {
+                z: DATA_ZOOM,
+                x: t.x >> shift,
+                y: t.y >> shift,
+            }
+        } else {
+            t
+        };
+        self.get(&own).map(|s| WorldTile::of(t, &s))
+    }
+
+    /// Makes every summary: those of the source's data tiles, then each zoom up to the root.
+    pub async fn make_all(&self, generator: &Generator) -> Result<(), SourceError> {
+        self.ready.store(false, Ordering::Relaxed);
+        let tiles = generator.source.data_tiles().await?;
+        self.data_tiles.store(tiles.len(), Ordering::Relaxed);
+        self.done.store(0, Ordering::Relaxed);
+        self.remake(generator, tiles, Vec::new()).await?;
+        self.ready.store(true, Ordering::Relaxed);
+        Ok(())
+    }
+
+    /// Makes again the summaries of the data tiles over `area` (data changed there), and the
+    /// summaries above them.
+    pub async fn remake_over(
+        &self,
+        generator: &Generator,
+        area: &GeoBbox,
+    ) -> Result<(), SourceError> {
+        let listed = generator.source.data_tiles().await?;
+        let known: Vec<TileCoord> = self
+            .read()
+            .keys()
+            .filter(|t| t.z == DATA_ZOOM)
+            .copied()
+            .collect();
+        let over = |t: &TileCoord| t.bounds().intersects(area);
+        let changed: Vec<TileCoord> = listed.iter().filter(|t| over(t)).copied().collect();
+        let gone: Vec<TileCoord> = known
+            .into_iter()
+            .filter(|t| over(t) && !listed.contains(t))
+            .collect();
+        self.data_tiles.store(listed.len(), Ordering::Relaxed);
+        self.remake(generator, changed, gone).await
+    }
+
+    /// Summarises `tiles` (data tiles), forgets `gone`, and makes again every summary above
+    /// either.
+    async fn remake(
+        &self,
+        generator: &Generator,
+        tiles: Vec<TileCoord>,
+        gone: Vec<TileCoord>,
+    ) -> Result<(), SourceError> {
+        let mut results = futures_util::stream::iter(tiles.iter().copied())
+            .map(|t| summarise_data_tile(generator, t))
+            .buffer_unordered(CONCURRENCY);
+        while let Some(result) = results.next().await {
+            let (t, summary) = result?;
+            let mut held = self.write();
+            match summary {
+                Some(s) => held.insert(t, Arc::new(s)),
+                None => held.remove(&t),
+            };
+            drop(held);
+            self.done.fetch_add(1, Ordering::Relaxed);
+        }
+        drop(results);
+        {
+            let mut held = self.write();
+            for t in &gone {
+                held.remove(t);
+            }
+        }
+        let mut level: BTreeSet<TileCoord> = tiles.into_iter().chain(gone).collect();
+        for z in (0..DATA_ZOOM).rev() {
+            level = level
+                .iter()
+                .map(|t| TileCoord {
+                    z,
+                    x: t.x >> 1,
+                    y: t.y >> 1,
+                })
+                .collect();
+            for parent in &level {
+                let children: Vec<Arc<TileSummary>> = {
+                    let held = self.read();
+                    children_of(parent)
+                        .iter()
+                        .filter_map(|c| held.get(c).cloned())
+                        .collect()
+                };
+                let summary = summarise_parent(generator, *parent, children).await?;
+                let mut held = self.write();
+                match summary {
+                    Some(s) => held.insert(*parent, Arc::new(s)),
+                    None => held.remove(parent),
+                };
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The summary of one data tile, from the source's buildings around it and the DEM.
+async fn summarise_data_tile(
+    generator: &Generator,
+    t: TileCoord,
+) -> Result<(TileCoord, Option<TileSummary>), SourceError> {
+    let AreaBuildings { set, .. } = generator.source.buildings(&t.bounds()).await?;
+    let dem = generator.dem.clone();
+    let roof_method = generator.roof_method;
+    let summary = tokio::task::spawn_blocking(move || {
+        let groups = set.clusters_of_tile(&t);
+        let extent = citymesh_core::building::set::extent_with(&t.bounds(), &groups);
+        let model = dem.lookup(&extent.grown_by_degrees(0.001)).model;
+        TileSummary::of_data_tile(t, &set, &model, roof_method)
+    })
+    .await?;
+    Ok((t, summary))
+}
+
+/// The summary of a tile above the data tiles, from its children's (and the DEM under it when
+/// it draws blocks).
+async fn summarise_parent(
+    generator: &Generator,
+    t: TileCoord,
+    children: Vec<Arc<TileSummary>>,
+) -> Result<Option<TileSummary>, SourceError> {
+    if children.is_empty() {
+        return Ok(None);
+    }
+    let dem = generator.dem.clone();
+    Ok(tokio::task::spawn_blocking(move || {
+        let refs: Vec<&TileSummary> = children.iter().map(AsRef::as_ref).collect();
+        if t.z >= BLOCK_ZOOM {
+            let model = dem.lookup(&t.bounds()).model;
+            TileSummary::of_children(t, &refs, Some(&model))
+        } else {
+            TileSummary::of_children(t, &refs, None)
+        }
+    })
+    .await?)
+}
+
+/// Makes the summaries in the background, then makes them again over every area whose data
+/// changed, and drops the world tiles generated from the old ones (the tile cache's own
+/// invalidation may have run before the summaries changed). Stops with the server.
+pub fn keep_summaries(
+    generator: Generator,
+    summaries: Arc<Summaries>,
+    tiles: Arc<super::TileCache>,
+) {
+    let mut changes = generator.source.subscribe();
+    tokio::spawn(async move {
+        let work = async {
+            let started = std::time::Instant::now();
+            match summaries.make_all(&generator).await {
+                Ok(()) => {
+                    let p = summaries.progress();
+                    tracing::info!(
+                        data_tiles = p.data_tiles,
+                        held = p.held,
+                        ms = started.elapsed().as_millis() as u64,
+                        "world tileset summaries made"
+                    );
+                }
+                Err(e) => tracing::error!("cannot make the world tileset's summaries: {e}"),
+            }
+            loop {
+                match changes.recv().await {
+                    Ok(crate::source::DataChanged { area }) => {
+                        if let Err(e) = summaries.remake_over(&generator, &area).await {
+                            tracing::error!(%area, "cannot remake summaries: {e}");
+                        }
+                        if let Err(e) = tiles.invalidate_area(&area).await {
+                            tracing::error!(%area, "cannot invalidate tiles: {e}");
+                        }
+                    }
+                    Err(tokio::sync::broadcast::error::RecvError::Lagged(_)) => {
+                        if let Err(e) = summaries.make_all(&generator).await {
+                            tracing::error!("cannot remake summaries: {e}");
+                        }
+                        tiles.invalidate_memory();
+                    }
+                    Err(tokio::sync::broadcast::error::RecvError::Closed) => break,
+                }
+            }
+        };
+        tokio::select! {
+            () = generator.stopping.cancelled() => {}
+            () = work => {}
+        }
+    });
+}

@@ -1,0 +1,227 @@
+//! The world tileset: `GET /3dtiles/tileset.json` without a box, and the files its tree names
+//! under `/3dtiles/world/{z}/{x}/{y}.json` (the tileset file whose root is that tile) and
+//! `.glb` (its content). Every answer reads a bounded number of summaries: a tileset file at
+//! most 85, a block tile one; a content tile of buildings at most the data tiles around one.
+
+use super::params::{TileQuery, encoding_for};
+use super::roofs::cached_tile;
+use super::schemas::GlbBytes;
+use super::tiles3d::{CONTENT_ENCODING, TilesetQuery, content_query};
+use crate::cache::TileKey;
+use crate::error::{AppError, ErrorBody};
+use crate::pipeline::{Buildings, MeshOptions, generate};
+use crate::source::AreaBuildings;
+use crate::state::AppState;
+use axum::Json;
+use axum::extract::rejection::{PathRejection, QueryRejection};
+use axum::extract::{Path, Query, State};
+use axum::http::{HeaderMap, header};
+use axum::response::{IntoResponse, Response};
+use citymesh_core::building::set::BuildingSet;
+use citymesh_core::geo::TileCoord;
+use citymesh_core::scene::SceneArea;
+use citymesh_core::tiles3d::{DATA_ZOOM, LEAF_ZOOM, world_tileset_json};
+use serde_json::json;
+use std::sync::Arc;
+
+/// How long a client should wait for the summaries to be made.
+const SUMMARIES_RETRY_SECS: u64 = 5;
+
+/// The root tileset file of the world tree (`tileset.json` without a box).
+pub async fn world_tileset(state: &AppState, query: &TilesetQuery) -> Result<Response, AppError> {
+    tileset_file(state, TileCoord { z: 0, x: 0, y: 0 }, "world/", &content_query(query))
+}
+
+/// A tileset file of the world tree whose root is `top`.
+fn tileset_file(
+    state: &AppState,
+    top: TileCoord,
+    prefix: &str,
+    query: &str,
+) -> Result<Response, AppError> {
+    let summaries = &state.summaries;
+    if !summaries.is_ready() {
+        let p = summaries.progress();
+        return Err(AppError::Unavailable {
+            code: "summaries_pending",
+            detail: format!(
+                "the world tileset is being summarised ({} of {} data tiles done); ask again \
+                 shortly, or ask for a part with ?bbox=",
+                p.done, p.data_tiles
+            ),
+            retry_after_secs: SUMMARIES_RETRY_SECS,
+        });
+    }
+    let progress = summaries.progress();
+    let extras = json!({
+        "citymesh": {
+            "dataTiles": progress.data_tiles,
+            "extent": summaries.get(&TileCoord { z: 0, x: 0, y: 0 }).map(|s| {
+                let r = s.region;
+                [r.west, r.south, r.east, r.north]
+            }),
+        }
+    });
+    let json = world_tileset_json(top, &|t| summaries.world_tile(t), prefix, query, extras)
+        .ok_or_else(|| {
+            AppError::not_found(
+                "no_such_tile",
+                format!(
+                    "{}/{}/{} holds no data: the tree only has tiles where buildings are",
+                    top.z, top.x, top.y
+                ),
+            )
+        })?;
+    Ok((
+        [(header::CACHE_CONTROL, "public, max-age=300")],
+        Json(json),
+    )
+        .into_response())
+}
+
+/// A tile of the world tree from its path: `{y}` ends in `.json` or `.glb`.
+fn parse_world(
+    path: Result<Path<(String, String, String)>, PathRejection>,
+) -> Result<(TileCoord, &'static str), AppError> {
+    let Path((z, x, y)) = path.map_err(|e| AppError::bad_request("invalid_tile", e.body_text()))?;
+    let (y, ext) = if let Some(y) = y.strip_suffix(".json") {
+        (y.to_owned(), "json")
+    } else if let Some(y) = y.strip_suffix(".glb") {
+        (y.to_owned(), "glb")
+    } else {
+        return Err(AppError::not_found(
+            "unknown_format",
+            format!("'{y}' ends neither in .json (a tileset file) nor in .glb (content)"),
+        ));
+    };
+    let num = |name: &str, t: &str| {
+        t.parse::<u32>().map_err(|_| {
+            AppError::bad_request(
+                "invalid_tile",
+                format!("{name} '{t}' is not a whole number"),
+            )
+        })
+    };
+    let (z, x, y) = (num("z", &z)?, num("x", &x)?, num("y", &y)?);
+    if z > u32::from(LEAF_ZOOM) {
+        return Err(AppError::not_found(
+            "no_such_tile",
+            format!("zoom {z} is below the tree's leaves (zoom {LEAF_ZOOM})"),
+        ));
+    }
+    let t = TileCoord::new(z, x, y).map_err(|e| AppError::not_found("no_such_tile", e.to_string()))?;
+    Ok((t, ext))
+}
+
+/// A file of the world tileset: a tileset file (`.json`: the tile, the two levels below it and
+/// references to the next files) or a tile's content (`.glb`, ECEF: blocks from zoom 9 to 13,
+/// the buildings themselves from zoom 14, roofs flattened above zoom 16).
+#[utoipa::path(get, path = "/3dtiles/world/{z}/{x}/{y}", tag = "3d tiles",
+    params(("z" = u8, Path, description = "Zoom of the tile (Web Mercator, as XYZ tiles), 0 to 16", minimum = 0, maximum = 16),
+           ("x" = u32, Path, description = "Column from the west", minimum = 0),
+           ("y" = String, Path, description = "Row from the north, then `.json` (the tileset file whose root is this tile) or `.glb` (its content)", example = "5625.glb"),
+           TileQuery),
+    responses(
+        (status = 200, description = "The tileset file (JSON) or the content (GLB)", content_type = "model/gltf-binary", body = inline(GlbBytes),
+            headers(
+                ("ETag" = String, description = "Strong validator of the content bytes"),
+                ("Cache-Control" = String, description = "`public, max-age=3600` for content, `public, max-age=300` for tileset files"),
+            )),
+        (status = 304, description = "Not modified: the If-None-Match ETag is current"),
+        (status = 400, description = "A coordinate is malformed", body = ErrorBody),
+        (status = 404, description = "No such tile (no data under it, or below the leaves), or the name ends neither in .json nor .glb", body = ErrorBody),
+        (status = 500, description = "An internal failure; the server log has the cause", body = ErrorBody),
+        (status = 502, description = "Overpass failed or sent an incomplete answer; nothing was stored", body = ErrorBody),
+        (status = 503, description = "The summaries are still being made, Overpass is rate limiting, or every generation slot is busy; see Retry-After", body = ErrorBody),
+        (status = 504, description = "Overpass did not answer in time", body = ErrorBody),
+    ))]
+pub async fn world_file(
+    State(state): State<AppState>,
+    request_headers: HeaderMap,
+    path: Result<Path<(String, String, String)>, PathRejection>,
+    query: Result<Query<TilesetQuery>, QueryRejection>,
+) -> Result<Response, AppError> {
+    let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
+    let (tile, ext) = parse_world(path)?;
+    if ext == "json" {
+        return tileset_file(&state, tile, "../../", &content_query(&query));
+    }
+    let Some(listed) = state.summaries.world_tile(tile) else {
+        return Err(if state.summaries.is_ready() {
+            AppError::not_found(
+                "no_such_tile",
+                format!("{}/{}/{} holds no data", tile.z, tile.x, tile.y),
+            )
+        } else {
+            AppError::Unavailable {
+                code: "summaries_pending",
+                detail: "the world tileset is being summarised; ask again shortly".into(),
+                retry_after_secs: SUMMARIES_RETRY_SECS,
+            }
+        });
+    };
+    if !listed.content {
+        return Err(AppError::not_found(
+            "no_content",
+            "this tile has no content: it only leads to its children",
+        ));
+    }
+    let encoding = encoding_for(query.encoding, &request_headers, CONTENT_ENCODING);
+    let key = TileKey::world(tile).with_encoding(encoding);
+    if tile.z >= DATA_ZOOM {
+        return cached_tile(
+            &state,
+            &request_headers,
+            key,
+            query.roofs.unwrap_or_default(),
+            "public, max-age=3600",
+        )
+        .await;
+    }
+    block_tile(&state, &request_headers, key).await
+}
+
+/// A tile of blocks, from its summary alone (roofs are flat whatever `roofs` asks).
+async fn block_tile(
+    state: &AppState,
+    request_headers: &HeaderMap,
+    key: TileKey,
+) -> Result<Response, AppError> {
+    let crate::cache::TileId::World(tile) = key.tile else {
+        return Err(AppError::internal("a block tile's key is a world tile's"));
+    };
+    let summary = state
+        .summaries
+        .get(&tile)
+        .ok_or_else(|| AppError::not_found("no_such_tile", "no data under this tile"))?;
+    let ground_cells = summary.ground_cells;
+    let gather = || async move {
+        let set = tokio::task::spawn_blocking(move || BuildingSet::new(summary.block_records()))
+            .await
+            .map_err(AppError::from)?;
+        Ok::<_, AppError>(AreaBuildings::given(Arc::new(set)))
+    };
+    let (cached, level) = state
+        .tiles
+        .get_or_generate(key, gather, |buildings| async {
+            let g = generate(
+                &state.generator,
+                SceneArea::Blocks {
+                    tile,
+                    ground: ground_cells,
+                },
+                Buildings::Loaded(buildings),
+                None,
+                MeshOptions::new(&state.generator, key.encoding),
+            )
+            .await?;
+            Ok::<_, AppError>((g.glb, g.stats))
+        })
+        .await?;
+    Ok(super::conditional::cached_response(
+        request_headers,
+        cached,
+        level,
+        "public, max-age=3600",
+    ))
+}

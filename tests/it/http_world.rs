@@ -1,0 +1,202 @@
+//! The world tileset over HTTP on the real Karlsruhe-Kirchfeld data: one tree over everything
+//! the server holds, in nested tileset files of bounded size, whose every content tile is valid
+//! glTF inside its tile's bounding region, with every building drawn once at every level that
+//! draws buildings, and blocks above them.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
+
+use crate::common;
+
+use axum::http::StatusCode;
+use citymesh_core::geo::ecef_to_geodetic;
+use common::{assert_valid_glb, get};
+use serde_json::Value;
+use std::collections::BTreeMap;
+
+/// A tile listed in a tileset file: its content URI (resolved), region and error, and its
+/// parent's region and error.
+struct Listed {
+    uri: String,
+    region: Vec<f64>,
+    error: f64,
+}
+
+fn region_of(tile: &Value) -> Vec<f64> {
+    tile["boundingVolume"]["region"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect()
+}
+
+/// `base` (a tileset file's path) joined with a relative URI.
+fn resolve(base: &str, uri: &str) -> String {
+    let mut parts: Vec<&str> = base.split('/').collect();
+    parts.pop();
+    for p in uri.split('/') {
+        match p {
+            ".." => {
+                parts.pop();
+            }
+            p => parts.push(p),
+        }
+    }
+    parts.join("/")
+}
+
+/// Walks a tileset file's tiles: checks that each parent's region holds its children's and that
+/// errors do not grow downwards, follows external tilesets, and collects the content.
+async fn walk(app: &axum::Router, path: &str, files: &mut usize, out: &mut Vec<Listed>) {
+    let answer = get(app, path).await;
+    assert_eq!(answer.status, StatusCode::OK, "{path}: {}", answer.text());
+    *files += 1;
+    let file = answer.json();
+    assert_eq!(file["asset"]["version"], "1.1");
+    let mut count = 0;
+    let mut stack: Vec<(&Value, Option<(Vec<f64>, f64)>)> = vec![(&file["root"], None)];
+    let mut external = Vec::new();
+    while let Some((tile, parent)) = stack.pop() {
+        count += 1;
+        let region = region_of(tile);
+        let error = tile["geometricError"].as_f64().unwrap();
+        if let Some((p, pe)) = &parent {
+            assert!(
+                p[0] <= region[0]
+                    && p[1] <= region[1]
+                    && p[2] >= region[2]
+                    && p[3] >= region[3]
+                    && p[4] <= region[4]
+                    && p[5] >= region[5],
+                "{path}: {region:?} outside its parent {p:?}"
+            );
+            assert!(error <= *pe, "{path}: error {error} above its parent's {pe}");
+        }
+        if let Some(uri) = tile["content"]["uri"].as_str() {
+            let resolved = resolve(path, uri);
+            if uri.ends_with(".json") {
+                assert!(tile["children"].is_null());
+                external.push(resolved);
+            } else {
+                out.push(Listed {
+                    uri: resolved,
+                    region: region.clone(),
+                    error,
+                });
+            }
+        }
+        for c in tile["children"].as_array().map_or(&[][..], |c| &c[..]) {
+            stack.push((c, Some((region.clone(), error))));
+        }
+    }
+    // 1 + 4 + 16 tiles with content and 64 references at most: bounded whatever the area.
+    assert!(count <= 85, "{path} lists {count} tiles");
+    for e in external {
+        Box::pin(walk(app, &e, files, out)).await;
+    }
+}
+
+/// The zoom of a content path `/3dtiles/world/{z}/{x}/{y}.glb`.
+fn zoom_of(uri: &str) -> u8 {
+    uri.split('/').rev().nth(2).unwrap().parse().unwrap()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_world_tileset_holds_every_building_once_per_level_inside_its_regions() {
+    let db = tempfile::tempdir().unwrap();
+    let app = common::kirchfeld_app(&db).await;
+    let progress = common::world_ready(&app).await;
+    // Kirchfeld's groups lie in 4 data tiles (zoom 14).
+    assert_eq!(progress["data_tiles"], 4, "{progress}");
+
+    let mut files = 0;
+    let mut listed = Vec::new();
+    walk(&app, "/3dtiles/tileset.json", &mut files, &mut listed).await;
+    // The root file (zooms 0-2), then one file each at zooms 3, 6, 9 and 12 on the way down,
+    // then one per zoom-15 tile under the four data tiles.
+    let mut at: BTreeMap<u8, usize> = BTreeMap::new();
+    for l in &listed {
+        *at.entry(zoom_of(&l.uri)).or_default() += 1;
+    }
+    println!("{files} tileset files; content tiles by zoom: {at:?}");
+    assert_eq!(at.keys().copied().min(), Some(9), "no content above zoom 9");
+    assert_eq!(at.get(&14), Some(&4));
+    assert_eq!(at.get(&15), Some(&16));
+    assert_eq!(at.get(&16), Some(&64));
+
+    let mut rows_at: BTreeMap<u8, usize> = BTreeMap::new();
+    let mut ids_at: BTreeMap<u8, std::collections::BTreeSet<String>> = BTreeMap::new();
+    for l in &listed {
+        let c = get(&app, &l.uri).await;
+        assert_eq!(c.status, StatusCode::OK, "{}", l.uri);
+        assert_valid_glb(&c.body);
+        let decoded = common::decode::decode_meshopt(&c.body);
+        assert_valid_glb(&decoded);
+        let r = &l.region;
+        for t in common::decode::triangles(&decoded) {
+            for q in t.corners {
+                let (lon, lat, h) = ecef_to_geodetic([q[0], -q[2], q[1]]);
+                let (lon, lat) = (lon.to_radians(), lat.to_radians());
+                assert!(
+                    (r[0]..=r[2]).contains(&lon)
+                        && (r[1]..=r[3]).contains(&lat)
+                        && (r[4]..=r[5]).contains(&h),
+                    "a {} vertex of {} at {lon}, {lat}, {h} lies outside {r:?}",
+                    t.material,
+                    l.uri
+                );
+            }
+        }
+        let z = zoom_of(&l.uri);
+        let rows = common::decode::feature_rows(&c.body);
+        *rows_at.entry(z).or_default() += rows.len();
+        for row in rows {
+            let id = format!("{}/{}", row["elementType"], row["elementId"]);
+            assert!(ids_at.entry(z).or_default().insert(id.clone()), "{id} twice at {z}");
+        }
+        if z == 16 {
+            assert_eq!(l.error, 0.0);
+        }
+    }
+    println!("features by zoom: {rows_at:?}");
+    // From the data tiles down, every building and part once (3,026 records, 7 outlines wholly
+    // covered by their parts); above, blocks, each a cell's buildings merged.
+    for z in 14..=16 {
+        assert_eq!(rows_at[&z], 3019, "zoom {z}");
+    }
+    for z in 9..14 {
+        let blocks = rows_at[&z];
+        assert!(blocks > 0 && blocks < 3019, "zoom {z}: {blocks} blocks");
+        assert!(blocks <= rows_at.get(&(z + 1)).copied().unwrap_or(3019));
+    }
+}
+
+#[tokio::test]
+async fn world_files_refuse_what_is_not_in_the_tree() {
+    let db = tempfile::tempdir().unwrap();
+    let app = common::kirchfeld_app(&db).await;
+    common::world_ready(&app).await;
+    for (path, status, code) in [
+        // Far from Karlsruhe: no data there.
+        ("/3dtiles/world/14/0/0.glb", StatusCode::NOT_FOUND, "no_such_tile"),
+        ("/3dtiles/world/3/0/0.json", StatusCode::NOT_FOUND, "no_such_tile"),
+        // Above zoom 9 tiles only lead the way down.
+        ("/3dtiles/world/3/4/2.glb", StatusCode::NOT_FOUND, "no_content"),
+        ("/3dtiles/world/17/1/1.glb", StatusCode::NOT_FOUND, "no_such_tile"),
+        ("/3dtiles/world/2/4/0.glb", StatusCode::NOT_FOUND, "no_such_tile"),
+        ("/3dtiles/world/14/8574/5623.png", StatusCode::NOT_FOUND, "unknown_format"),
+        ("/3dtiles/world/x/1/1.glb", StatusCode::BAD_REQUEST, "invalid_tile"),
+    ] {
+        let a = get(&app, path).await;
+        assert_eq!(a.status, status, "{path}: {}", a.text());
+        assert_eq!(a.json()["error"], code, "{path}");
+    }
+    // A data tile's file and content exist.
+    assert_eq!(
+        get(&app, "/3dtiles/world/14/8574/5623.glb").await.status,
+        StatusCode::OK
+    );
+    assert_eq!(
+        get(&app, "/3dtiles/world/12/2143/1405.json").await.status,
+        StatusCode::OK
+    );
+}
