@@ -29,7 +29,12 @@ const SUMMARIES_RETRY_SECS: u64 = 5;
 
 /// The root tileset file of the world tree (`tileset.json` without a box).
 pub async fn world_tileset(state: &AppState, query: &TilesetQuery) -> Result<Response, AppError> {
-    tileset_file(state, TileCoord { z: 0, x: 0, y: 0 }, "world/", &content_query(query))
+    tileset_file(
+        state,
+        TileCoord { z: 0, x: 0, y: 0 },
+        "world/",
+        &content_query(query),
+    )
 }
 
 /// A tileset file of the world tree whose root is `top`.
@@ -72,11 +77,7 @@ fn tileset_file(
                 ),
             )
         })?;
-    Ok((
-        [(header::CACHE_CONTROL, "public, max-age=300")],
-        Json(json),
-    )
-        .into_response())
+    Ok(([(header::CACHE_CONTROL, "public, max-age=300")], Json(json)).into_response())
 }
 
 /// A tile of the world tree from its path: `{y}` ends in `.json` or `.glb`.
@@ -109,7 +110,8 @@ fn parse_world(
             format!("zoom {z} is below the tree's leaves (zoom {LEAF_ZOOM})"),
         ));
     }
-    let t = TileCoord::new(z, x, y).map_err(|e| AppError::not_found("no_such_tile", e.to_string()))?;
+    let t =
+        TileCoord::new(z, x, y).map_err(|e| AppError::not_found("no_such_tile", e.to_string()))?;
     Ok((t, ext))
 }
 

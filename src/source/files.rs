@@ -112,8 +112,12 @@ impl BuildingSource for FileSource {
 
     fn data_tiles<'a>(&'a self) -> BoxFuture<'a, Result<Vec<TileCoord>, SourceError>> {
         let zoom = super::data_tiles::data_tile::DATA_ZOOM;
-        let tiles: std::collections::BTreeSet<TileCoord> =
-            self.set.clusters().iter().map(|c| c.xyz_tile(zoom)).collect();
+        let tiles: std::collections::BTreeSet<TileCoord> = self
+            .set
+            .clusters()
+            .iter()
+            .map(|c| c.xyz_tile(zoom))
+            .collect();
         Box::pin(async move { Ok(tiles.into_iter().collect()) })
     }
 

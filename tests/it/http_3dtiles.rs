@@ -360,9 +360,7 @@ fn ecef_positions(glb: &[u8]) -> Vec<([f64; 3], String)> {
 async fn a_known_building_corner_decodes_onto_its_osm_node() {
     let db = tempfile::tempdir().unwrap();
     let app = app(&db).await;
-    let tileset = get(&app, &over_extent("tiling=implicit"))
-        .await
-        .json();
+    let tileset = get(&app, &over_extent("tiling=implicit")).await.json();
     let root = &tileset["root"];
     let levels = root["implicitTiling"]["availableLevels"].as_u64().unwrap() as u32;
     let region: Vec<f64> = root["boundingVolume"]["region"]

@@ -69,7 +69,10 @@ async fn walk(app: &axum::Router, path: &str, files: &mut usize, out: &mut Vec<L
                     && p[5] >= region[5],
                 "{path}: {region:?} outside its parent {p:?}"
             );
-            assert!(error <= *pe, "{path}: error {error} above its parent's {pe}");
+            assert!(
+                error <= *pe,
+                "{path}: error {error} above its parent's {pe}"
+            );
         }
         if let Some(uri) = tile["content"]["uri"].as_str() {
             let resolved = resolve(path, uri);
@@ -151,7 +154,10 @@ async fn the_world_tileset_holds_every_building_once_per_level_inside_its_region
         *rows_at.entry(z).or_default() += rows.len();
         for row in rows {
             let id = format!("{}/{}", row["elementType"], row["elementId"]);
-            assert!(ids_at.entry(z).or_default().insert(id.clone()), "{id} twice at {z}");
+            assert!(
+                ids_at.entry(z).or_default().insert(id.clone()),
+                "{id} twice at {z}"
+            );
         }
         if z == 16 {
             assert_eq!(l.error, 0.0);
@@ -184,14 +190,42 @@ async fn world_files_refuse_what_is_not_in_the_tree() {
     common::world_ready(&app).await;
     for (path, status, code) in [
         // Far from Karlsruhe: no data there.
-        ("/3dtiles/world/14/0/0.glb", StatusCode::NOT_FOUND, "no_such_tile"),
-        ("/3dtiles/world/3/0/0.json", StatusCode::NOT_FOUND, "no_such_tile"),
+        (
+            "/3dtiles/world/14/0/0.glb",
+            StatusCode::NOT_FOUND,
+            "no_such_tile",
+        ),
+        (
+            "/3dtiles/world/3/0/0.json",
+            StatusCode::NOT_FOUND,
+            "no_such_tile",
+        ),
         // Above zoom 9 tiles only lead the way down.
-        ("/3dtiles/world/3/4/2.glb", StatusCode::NOT_FOUND, "no_content"),
-        ("/3dtiles/world/17/1/1.glb", StatusCode::NOT_FOUND, "no_such_tile"),
-        ("/3dtiles/world/2/4/0.glb", StatusCode::NOT_FOUND, "no_such_tile"),
-        ("/3dtiles/world/14/8574/5623.png", StatusCode::NOT_FOUND, "unknown_format"),
-        ("/3dtiles/world/x/1/1.glb", StatusCode::BAD_REQUEST, "invalid_tile"),
+        (
+            "/3dtiles/world/3/4/2.glb",
+            StatusCode::NOT_FOUND,
+            "no_content",
+        ),
+        (
+            "/3dtiles/world/17/1/1.glb",
+            StatusCode::NOT_FOUND,
+            "no_such_tile",
+        ),
+        (
+            "/3dtiles/world/2/4/0.glb",
+            StatusCode::NOT_FOUND,
+            "no_such_tile",
+        ),
+        (
+            "/3dtiles/world/14/8574/5623.png",
+            StatusCode::NOT_FOUND,
+            "unknown_format",
+        ),
+        (
+            "/3dtiles/world/x/1/1.glb",
+            StatusCode::BAD_REQUEST,
+            "invalid_tile",
+        ),
     ] {
         let a = get(&app, path).await;
         assert_eq!(a.status, status, "{path}: {}", a.text());

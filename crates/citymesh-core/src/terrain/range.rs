@@ -72,8 +72,14 @@ impl ElevationModel {
             return (lo, hi);
         }
         let p = f64::from(self.per_degree());
-        let (i0, i1) = ((bbox.min_lon() * p).floor() as i64 - 1, (bbox.max_lon() * p).ceil() as i64 + 1);
-        let (j0, j1) = ((bbox.min_lat() * p).floor() as i64 - 1, (bbox.max_lat() * p).ceil() as i64 + 1);
+        let (i0, i1) = (
+            (bbox.min_lon() * p).floor() as i64 - 1,
+            (bbox.max_lon() * p).ceil() as i64 + 1,
+        );
+        let (j0, j1) = (
+            (bbox.min_lat() * p).floor() as i64 - 1,
+            (bbox.max_lat() * p).ceil() as i64 + 1,
+        );
         for j in j0..=j1 {
             for i in i0..=i1 {
                 visit(self.ground_height(i as f64 / p, j as f64 / p));

@@ -15,6 +15,6 @@ pub use subtree::{
     SUBTREE_MAGIC, TILE_CLASS, TILE_ERROR_PROPERTY, TILE_REGION_PROPERTY, root_subtree,
     write_subtree,
 };
-pub use tileset::{ImplicitLayout, Tiling, tileset_json};
 pub use summary::{BLOCK_CELLS, BLOCK_ZOOM, Block, DATA_ZOOM, LEAF_ZOOM, TileSummary};
+pub use tileset::{ImplicitLayout, Tiling, tileset_json};
 pub use world::{LEVELS_PER_FILE, WorldTile, children_of, world_tileset_json};

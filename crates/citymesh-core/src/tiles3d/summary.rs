@@ -134,7 +134,8 @@ fn group_figures(
     roof_method: RoofMethod,
 ) -> Option<(f64, f64, f64, f64, OsmId)> {
     let has_parts = records.iter().any(|r| r.is_part);
-    let (mut area, mut weighted, mut tallest, mut roof, mut largest) = (0.0, 0.0, 0.0f64, 0.0f64, None);
+    let (mut area, mut weighted, mut tallest, mut roof, mut largest) =
+        (0.0, 0.0, 0.0f64, 0.0f64, None);
     for r in records.iter().filter(|r| r.is_part == has_parts) {
         let Some(o) = record_outline(r, frame, roof_method) else {
             continue;
@@ -168,7 +169,8 @@ impl TileSummary {
         let (lon, lat) = square.center();
         let frame = LocalFrame::new(lon, lat, 0.0);
         let mut extent = square;
-        let (mut reach_lon, mut reach_lat, mut tallest, mut roof_error) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+        let (mut reach_lon, mut reach_lat, mut tallest, mut roof_error) =
+            (0.0f64, 0.0f64, 0.0f64, 0.0f64);
         let mut blocks: Vec<(u16, Block)> = Vec::new();
         for c in &groups {
             let [w, s, e, n] = c.bounds;
@@ -262,11 +264,13 @@ impl TileSummary {
                     );
                     if let Ok(cell) = GeoBbox::new(w, s, w + dx, s + dy) {
                         let (lo, hi) = model.height_range_in(&cell);
-                        region = region.union(&Region::of_bbox(&cell, lo, hi + tallest).grown(SLACK_M));
+                        region =
+                            region.union(&Region::of_bbox(&cell, lo, hi + tallest).grown(SLACK_M));
                     }
                 }
             }
-            ground_error = ground_error.max(crate::scene::LevelOfDetail::ground_error(&square, model));
+            ground_error =
+                ground_error.max(crate::scene::LevelOfDetail::ground_error(&square, model));
         }
         blocks.sort_by_key(|(c, _)| *c);
         Some(Self {
