@@ -20,6 +20,9 @@ struct Listed {
     error: f64,
 }
 
+/// A parent's region and geometric error.
+type Bound = (Vec<f64>, f64);
+
 fn region_of(tile: &Value) -> Vec<f64> {
     tile["boundingVolume"]["region"]
         .as_array()
@@ -53,7 +56,7 @@ async fn walk(app: &axum::Router, path: &str, files: &mut usize, out: &mut Vec<L
     let file = answer.json();
     assert_eq!(file["asset"]["version"], "1.1");
     let mut count = 0;
-    let mut stack: Vec<(&Value, Option<(Vec<f64>, f64)>)> = vec![(&file["root"], None)];
+    let mut stack: Vec<(&Value, Option<Bound>)> = vec![(&file["root"], None)];
     let mut external = Vec::new();
     while let Some((tile, parent)) = stack.pop() {
         count += 1;
