@@ -60,11 +60,15 @@ impl Summaries {
     }
 
     fn read(&self) -> std::sync::RwLockReadGuard<'_, HashMap<TileCoord, Arc<TileSummary>>> {
-        self.tiles.read().unwrap_or_else(std::sync::PoisonError::into_inner)
+        self.tiles
+            .read()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
     }
 
     fn write(&self) -> std::sync::RwLockWriteGuard<'_, HashMap<TileCoord, Arc<TileSummary>>> {
-        self.tiles.write().unwrap_or_else(std::sync::PoisonError::into_inner)
+        self.tiles
+            .write()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
     }
 
     /// The summary of a tile at or above the data tiles.
