@@ -14,7 +14,7 @@ use citymesh_core::geo::{GeoBbox, TileCoord};
 use citymesh_core::tiles3d::{BLOCK_ZOOM, DATA_ZOOM, TileSummary, WorldTile, children_of};
 use futures_util::StreamExt;
 use std::collections::{BTreeSet, HashMap};
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, RwLock};
 
 /// Summaries made at once (each on the blocking pool).
@@ -33,30 +33,42 @@ pub struct SummaryProgress {
 }
 
 /// The summaries of every tile of the world tree that holds buildings.
-#[derive(Default)]
 pub struct Summaries {
     tiles: RwLock<HashMap<TileCoord, Arc<TileSummary>>>,
     done: AtomicUsize,
     data_tiles: AtomicUsize,
-    ready: AtomicBool,
+    /// Every summary is made (watched by [`Summaries::ready`]).
+    ready: tokio::sync::watch::Sender<bool>,
 }
 
 impl Summaries {
     pub fn new() -> Arc<Self> {
-        Arc::new(Self::default())
+        Arc::new(Self {
+            tiles: RwLock::default(),
+            done: AtomicUsize::new(0),
+            data_tiles: AtomicUsize::new(0),
+            ready: tokio::sync::watch::channel(false).0,
+        })
+    }
+
+    /// Waits until every summary is made.
+    pub async fn ready(&self) {
+        let mut ready = self.ready.subscribe();
+        // The sender lives as long as `self`: the wait ends only when it is ready.
+        let _ = ready.wait_for(|r| *r).await;
     }
 
     pub fn progress(&self) -> SummaryProgress {
         SummaryProgress {
             done: self.done.load(Ordering::Relaxed),
             data_tiles: self.data_tiles.load(Ordering::Relaxed),
-            ready: self.ready.load(Ordering::Relaxed),
+            ready: self.is_ready(),
             held: self.read().len(),
         }
     }
 
     pub fn is_ready(&self) -> bool {
-        self.ready.load(Ordering::Relaxed)
+        *self.ready.borrow()
     }
 
     fn read(&self) -> std::sync::RwLockReadGuard<'_, HashMap<TileCoord, Arc<TileSummary>>> {
@@ -94,12 +106,12 @@ impl Summaries {
 
     /// Makes every summary: those of the source's data tiles, then each zoom up to the root.
     pub async fn make_all(&self, generator: &Generator) -> Result<(), SourceError> {
-        self.ready.store(false, Ordering::Relaxed);
+        self.ready.send_replace(false);
         let tiles = generator.source.data_tiles().await?;
         self.data_tiles.store(tiles.len(), Ordering::Relaxed);
         self.done.store(0, Ordering::Relaxed);
         self.remake(generator, tiles, Vec::new()).await?;
-        self.ready.store(true, Ordering::Relaxed);
+        self.ready.send_replace(true);
         Ok(())
     }
 

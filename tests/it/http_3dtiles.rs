@@ -474,7 +474,7 @@ async fn tree_measurements_are_shared_kept_and_never_list_refused_uris() {
     // Kirchfeld spans about 3.3 km²: with a limit of 1 km² its tileset would list content the
     // server refuses.
     let db = tempfile::tempdir().unwrap();
-    let small = citymesh::app(state_with(&db, &["--max-bbox-km2", "1"]).await.unwrap());
+    let small = common::app_of(state_with(&db, &["--max-bbox-km2", "1"]).await.unwrap());
     let refused = get(&small, &over_extent("")).await;
     assert_eq!(
         refused.status,

@@ -83,10 +83,14 @@ pub async fn app_with_clock(
     )
 }
 
-/// The app of a state, its tile cache known to [`settle_writes`].
+/// The app of a state, its tile cache known to [`settle_writes`] and its summaries to
+/// [`world_ready`].
 pub fn app_of(state: citymesh::state::AppState) -> axum::Router {
     if let Ok(mut caches) = CACHES.lock() {
         caches.push(state.tiles.clone());
+    }
+    if let Ok(mut summaries) = SUMMARIES.lock() {
+        summaries.push(state.summaries.clone());
     }
     citymesh::app(state)
 }
@@ -280,16 +284,19 @@ pub fn serve_binary(db: &Path, extra: &[&str]) -> (std::process::Child, String, 
     (child, addr, lines)
 }
 
-/// Waits until the server's world tileset is summarised (`/health`'s `world.ready`), as a
-/// client would: summaries are made in the background when the server starts. Polls the state
-/// (at most 6,000 times, 10 ms apart) rather than waiting a fixed time.
+/// The world summaries of the apps this test binary made.
+static SUMMARIES: std::sync::Mutex<Vec<std::sync::Arc<citymesh::cache::Summaries>>> =
+    std::sync::Mutex::new(Vec::new());
+
+/// Waits until the world tileset of every app made so far is summarised (made in the
+/// background when a server starts), on the summaries' own readiness, then answers `/health`'s
+/// `world` of `app`. A minute without it fails the test.
 pub async fn world_ready(app: &axum::Router) -> serde_json::Value {
-    for _ in 0..6000 {
-        let health = get(app, "/health").await.json();
-        if health["world"]["ready"] == true {
-            return health["world"].clone();
-        }
-        tokio::time::sleep(std::time::Duration::from_millis(10)).await;
+    let all: Vec<_> = SUMMARIES.lock().map(|s| s.clone()).unwrap_or_default();
+    for s in all {
+        tokio::time::timeout(std::time::Duration::from_secs(60), s.ready())
+            .await
+            .expect("the world tileset was never summarised");
     }
-    panic!("the world tileset was never summarised");
+    get(app, "/health").await.json()["world"].clone()
 }
