@@ -9,7 +9,7 @@
 //! with holes.
 
 use crate::pipeline::Generator;
-use crate::source::{AreaBuildings, SourceError};
+use crate::source::SourceError;
 use citymesh_core::geo::{GeoBbox, TileCoord};
 use citymesh_core::tiles3d::{BLOCK_ZOOM, DATA_ZOOM, TileSummary, WorldTile, children_of};
 use futures_util::StreamExt;
@@ -202,7 +202,7 @@ async fn summarise_data_tile(
     generator: &Generator,
     t: TileCoord,
 ) -> Result<(TileCoord, Option<TileSummary>), SourceError> {
-    let AreaBuildings { set, .. } = generator.source.buildings(&t.bounds()).await?;
+    let set = generator.source.held_buildings(&t.bounds()).await?;
     let dem = generator.dem.clone();
     let roof_method = generator.roof_method;
     let summary = tokio::task::spawn_blocking(move || {

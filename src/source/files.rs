@@ -110,6 +110,13 @@ impl BuildingSource for FileSource {
         self.set.extent()
     }
 
+    fn held_buildings<'a>(
+        &'a self,
+        _bbox: &'a GeoBbox,
+    ) -> BoxFuture<'a, Result<Arc<BuildingSet>, SourceError>> {
+        Box::pin(async move { Ok(self.set.clone()) })
+    }
+
     fn data_tiles<'a>(&'a self) -> BoxFuture<'a, Result<Vec<TileCoord>, SourceError>> {
         let zoom = super::data_tiles::data_tile::DATA_ZOOM;
         let tiles: std::collections::BTreeSet<TileCoord> = self

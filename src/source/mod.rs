@@ -126,6 +126,14 @@ pub trait BuildingSource: Send + Sync {
     /// The extent of all buildings when the source knows it up front (files), else `None`.
     fn extent(&self) -> Option<GeoBbox>;
 
+    /// The buildings an area needs, as [`BuildingSource::buildings`], from what the source
+    /// holds alone: never asks upstream, starts no refresh and leaves the request caches alone
+    /// (the world tileset's summaries read every data tile with it).
+    fn held_buildings<'a>(
+        &'a self,
+        bbox: &'a GeoBbox,
+    ) -> BoxFuture<'a, Result<Arc<BuildingSet>, SourceError>>;
+
     /// The data tiles (`data_tiles::data_tile::DATA_ZOOM`) that hold buildings: the stored
     /// ones, or those holding the files' groups. The world tileset is summarised over them.
     fn data_tiles<'a>(&'a self) -> BoxFuture<'a, Result<Vec<TileCoord>, SourceError>>;

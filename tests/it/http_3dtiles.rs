@@ -474,7 +474,8 @@ async fn tree_measurements_are_shared_kept_and_never_list_refused_uris() {
     // Kirchfeld spans about 3.3 km²: with a limit of 1 km² its tileset would list content the
     // server refuses.
     let db = tempfile::tempdir().unwrap();
-    let small = common::app_of(state_with(&db, &["--max-bbox-km2", "1"]).await.unwrap());
+    let small_state = state_with(&db, &["--max-bbox-km2", "1"]).await.unwrap();
+    let small = common::app_of(small_state.clone());
     let refused = get(&small, &over_extent("")).await;
     assert_eq!(
         refused.status,
@@ -484,7 +485,7 @@ async fn tree_measurements_are_shared_kept_and_never_list_refused_uris() {
     );
     assert_eq!(refused.json()["error"], "bbox_too_large");
     // The world tileset has no such limit: it is made of bounded files whatever the area.
-    common::world_ready(&small).await;
+    common::world_ready(&small_state).await;
     let world = get(&small, "/3dtiles/tileset.json").await;
     assert_eq!(world.status, StatusCode::OK, "{}", world.text());
 

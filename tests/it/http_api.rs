@@ -169,6 +169,7 @@ async fn openapi_describes_every_route_with_binary_glb_and_json_errors() {
             "GET /3dtiles/area/{bbox}/content/{level}/{x}/{y}.glb content",
             "GET /3dtiles/area/{bbox}/subtrees/{level}/{x}/{y}.subtree subtree",
             "GET /3dtiles/tileset.json tileset",
+            "GET /3dtiles/world/{z}/{x}/{y} world_file",
             "GET /cesium cesium",
             "GET /classify/adapt/{id} get_adapt",
             "GET /classify/predictions predictions",

@@ -109,10 +109,11 @@ fn zoom_of(uri: &str) -> u8 {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_world_tileset_holds_every_building_once_per_level_inside_its_regions() {
     let db = tempfile::tempdir().unwrap();
-    let app = common::kirchfeld_app(&db).await;
-    let progress = common::world_ready(&app).await;
+    let state = common::kirchfeld_state(&db).await;
+    let app = common::app_of(state.clone());
+    let progress = common::world_ready(&state).await;
     // Kirchfeld's groups lie in 4 data tiles (zoom 14).
-    assert_eq!(progress["data_tiles"], 4, "{progress}");
+    assert_eq!(progress.data_tiles, 4, "{progress:?}");
 
     let mut files = 0;
     let mut listed = Vec::new();
@@ -189,8 +190,9 @@ async fn the_world_tileset_holds_every_building_once_per_level_inside_its_region
 #[tokio::test]
 async fn world_files_refuse_what_is_not_in_the_tree() {
     let db = tempfile::tempdir().unwrap();
-    let app = common::kirchfeld_app(&db).await;
-    common::world_ready(&app).await;
+    let state = common::kirchfeld_state(&db).await;
+    let app = common::app_of(state.clone());
+    common::world_ready(&state).await;
     for (path, status, code) in [
         // Far from Karlsruhe: no data there.
         (

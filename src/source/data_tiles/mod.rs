@@ -417,6 +417,25 @@ impl BuildingSource for DataTileSource {
         None
     }
 
+    fn held_buildings<'a>(
+        &'a self,
+        bbox: &'a GeoBbox,
+    ) -> BoxFuture<'a, Result<Arc<BuildingSet>, SourceError>> {
+        Box::pin(async move {
+            let mut seen = HashSet::new();
+            let mut records = Vec::new();
+            for t in data_tiles_for(bbox) {
+                if let Some(stored) = self.store.get(&t).await? {
+                    let parsed = parse(stored.body, None).await?;
+                    records.extend(parsed.records.iter().filter(|r| seen.insert(r.id)).cloned());
+                }
+            }
+            let set =
+                tokio::task::spawn_blocking(move || BuildingSet::from_shared(records)).await?;
+            Ok(Arc::new(set))
+        })
+    }
+
     fn data_tiles<'a>(&'a self) -> BoxFuture<'a, Result<Vec<TileCoord>, SourceError>> {
         Box::pin(async move { Ok(self.store.stored_tiles().await?) })
     }

@@ -83,14 +83,26 @@ pub async fn app_with_clock(
     )
 }
 
-/// The app of a state, its tile cache known to [`settle_writes`] and its summaries to
-/// [`world_ready`].
+/// The state of a server of Karlsruhe-Kirchfeld from its PBF file, over a database in `db`
+/// (for tests that wait on its world summaries: [`world_ready`]).
+pub async fn kirchfeld_state(db: &tempfile::TempDir) -> citymesh::state::AppState {
+    let file = data_dir().join("osm/karlsruhe-kirchfeld.osm.pbf");
+    let args = ServeArgs::parse_from([
+        "serve",
+        "--dem-dir",
+        dem_dir().to_str().unwrap(),
+        "--cache-db",
+        db.path().join("c.sqlite").to_str().unwrap(),
+        "--osm",
+        file.to_str().unwrap(),
+    ]);
+    citymesh::server::build_state(&args).await.unwrap()
+}
+
+/// The app of a state, its tile cache known to [`settle_writes`].
 pub fn app_of(state: citymesh::state::AppState) -> axum::Router {
     if let Ok(mut caches) = CACHES.lock() {
         caches.push(state.tiles.clone());
-    }
-    if let Ok(mut summaries) = SUMMARIES.lock() {
-        summaries.push(state.summaries.clone());
     }
     citymesh::app(state)
 }
@@ -284,19 +296,12 @@ pub fn serve_binary(db: &Path, extra: &[&str]) -> (std::process::Child, String, 
     (child, addr, lines)
 }
 
-/// The world summaries of the apps this test binary made.
-static SUMMARIES: std::sync::Mutex<Vec<std::sync::Arc<citymesh::cache::Summaries>>> =
-    std::sync::Mutex::new(Vec::new());
-
-/// Waits until the world tileset of every app made so far is summarised (made in the
-/// background when a server starts), on the summaries' own readiness, then answers `/health`'s
-/// `world` of `app`. A minute without it fails the test.
-pub async fn world_ready(app: &axum::Router) -> serde_json::Value {
-    let all: Vec<_> = SUMMARIES.lock().map(|s| s.clone()).unwrap_or_default();
-    for s in all {
-        tokio::time::timeout(std::time::Duration::from_secs(60), s.ready())
-            .await
-            .expect("the world tileset was never summarised");
-    }
-    get(app, "/health").await.json()["world"].clone()
+/// Waits until the server's world tileset is summarised (made in the background when a server
+/// starts), on the summaries' own readiness, and answers its progress. A minute without it
+/// fails the test.
+pub async fn world_ready(state: &citymesh::state::AppState) -> citymesh::cache::SummaryProgress {
+    tokio::time::timeout(std::time::Duration::from_secs(60), state.summaries.ready())
+        .await
+        .expect("the world tileset was never summarised");
+    state.summaries.progress()
 }
