@@ -221,3 +221,13 @@ mod tests {
         assert_eq!(ground_cells(&thin), (1_296_000 + 1) * 2);
     }
 }
+
+/// A path's coordinate as a whole number, or 400 `invalid_tile` naming it.
+pub fn whole_number(name: &str, text: &str) -> Result<u32, AppError> {
+    text.parse::<u32>().map_err(|_| {
+        AppError::bad_request(
+            "invalid_tile",
+            format!("{name} '{text}' is not a whole number"),
+        )
+    })
+}

@@ -2,7 +2,7 @@
 //! `?bbox=`, `?tiling=`), the ECEF glb content its quadtree names and, for implicit tiling, the
 //! binary subtree; content goes through the same tile cache as XYZ tiles.
 
-use super::params::{EncodingParam, TileQuery, encoding_for, parse_bbox};
+use super::params::{EncodingParam, TileQuery, encoding_for, parse_bbox, whole_number};
 use super::roofs::cached_tile;
 use super::schemas::{GlbBytes, SubtreeBytes};
 use crate::cache::TileKey;
@@ -131,19 +131,11 @@ fn parse_implicit(level: &str, x: &str, y: &str, ext: &str) -> Result<ImplicitTi
     let y = y.strip_suffix(ext).ok_or_else(|| {
         AppError::not_found("unknown_format", format!("'{y}' does not end in {ext}"))
     })?;
-    let num = |name: &str, t: &str| {
-        t.parse::<u32>().map_err(|_| {
-            AppError::bad_request(
-                "invalid_tile",
-                format!("{name} '{t}' is not a whole number"),
-            )
-        })
-    };
-    let level = num("level", level)?;
+    let level = whole_number("level", level)?;
     let t = ImplicitTile {
         level: u8::try_from(level).unwrap_or(u8::MAX),
-        x: num("x", x)?,
-        y: num("y", y)?,
+        x: whole_number("x", x)?,
+        y: whole_number("y", y)?,
     };
     if !t.is_valid() {
         return Err(AppError::not_found(

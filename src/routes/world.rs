@@ -3,7 +3,7 @@
 //! `.glb` (its content). Every answer reads a bounded number of summaries: a tileset file at
 //! most 85, a block tile one; a content tile of buildings at most the data tiles around one.
 
-use super::params::{TileQuery, encoding_for};
+use super::params::{TileQuery, encoding_for, whole_number};
 use super::roofs::cached_tile;
 use super::schemas::GlbBytes;
 use super::tiles3d::{CONTENT_ENCODING, TilesetQuery, content_query};
@@ -23,6 +23,9 @@ use citymesh_core::scene::SceneArea;
 use citymesh_core::tiles3d::{DATA_ZOOM, LEAF_ZOOM, world_tileset_json};
 use serde_json::json;
 use std::sync::Arc;
+
+/// Content changes only when its data does: kept an hour, then revalidated with the ETag.
+const CONTENT_CACHE_CONTROL: &str = "public, max-age=3600";
 
 /// How long a client should wait for the summaries to be made.
 const SUMMARIES_RETRY_SECS: u64 = 5;
@@ -95,15 +98,11 @@ fn parse_world(
             format!("'{y}' ends neither in .json (a tileset file) nor in .glb (content)"),
         ));
     };
-    let num = |name: &str, t: &str| {
-        t.parse::<u32>().map_err(|_| {
-            AppError::bad_request(
-                "invalid_tile",
-                format!("{name} '{t}' is not a whole number"),
-            )
-        })
-    };
-    let (z, x, y) = (num("z", &z)?, num("x", &x)?, num("y", &y)?);
+    let (z, x, y) = (
+        whole_number("z", &z)?,
+        whole_number("x", &x)?,
+        whole_number("y", &y)?,
+    );
     if z > u32::from(LEAF_ZOOM) {
         return Err(AppError::not_found(
             "no_such_tile",
@@ -176,22 +175,20 @@ pub async fn world_file(
             &request_headers,
             key,
             query.roofs.unwrap_or_default(),
-            "public, max-age=3600",
+            CONTENT_CACHE_CONTROL,
         )
         .await;
     }
-    block_tile(&state, &request_headers, key).await
+    block_tile(&state, &request_headers, tile, key).await
 }
 
 /// A tile of blocks, from its summary alone (roofs are flat whatever `roofs` asks).
 async fn block_tile(
     state: &AppState,
     request_headers: &HeaderMap,
+    tile: TileCoord,
     key: TileKey,
 ) -> Result<Response, AppError> {
-    let crate::cache::TileId::World(tile) = key.tile else {
-        return Err(AppError::internal("a block tile's key is a world tile's"));
-    };
     let summary = state
         .summaries
         .get(&tile)
@@ -224,6 +221,6 @@ async fn block_tile(
         request_headers,
         cached,
         level,
-        "public, max-age=3600",
+        CONTENT_CACHE_CONTROL,
     ))
 }
