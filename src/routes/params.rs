@@ -209,6 +209,16 @@ pub fn ground_cells(bbox: &GeoBbox) -> u64 {
     side(bbox.max_lon() - bbox.min_lon()).saturating_mul(side(bbox.max_lat() - bbox.min_lat()))
 }
 
+/// A path's coordinate as a whole number, or 400 `invalid_tile` naming it.
+pub fn whole_number(name: &str, text: &str) -> Result<u32, AppError> {
+    text.parse::<u32>().map_err(|_| {
+        AppError::bad_request(
+            "invalid_tile",
+            format!("{name} '{text}' is not a whole number"),
+        )
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -220,14 +230,4 @@ mod tests {
         let thin = GeoBbox::new(-180.0, 0.0, 180.0, 0.000_005).unwrap();
         assert_eq!(ground_cells(&thin), (1_296_000 + 1) * 2);
     }
-}
-
-/// A path's coordinate as a whole number, or 400 `invalid_tile` naming it.
-pub fn whole_number(name: &str, text: &str) -> Result<u32, AppError> {
-    text.parse::<u32>().map_err(|_| {
-        AppError::bad_request(
-            "invalid_tile",
-            format!("{name} '{text}' is not a whole number"),
-        )
-    })
 }
