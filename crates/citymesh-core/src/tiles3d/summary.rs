@@ -354,13 +354,19 @@ impl TileSummary {
             .collect()
     }
 
-    /// The horizontal error of merging a cell's groups into one block: half a cell's side (m).
+    /// The horizontal error of merging a cell's groups into one block (m): a cell's diagonal.
+    /// A block lies inside its cell and stands for every group whose representative point is
+    /// in it, so a wall anywhere in the cell may be drawn up to that far from where it is (half
+    /// a side would be the error of moving one building to its cell's centre, not that of
+    /// leaving out many small ones).
     pub fn block_error_m(&self) -> f64 {
         let b = self.tile.bounds();
         let (lon, lat) = b.center();
         let (mx, my) = LocalFrame::new(lon, lat, 0.0).metres_per_degree();
-        let side = ((b.max_lon() - b.min_lon()) * mx).max((b.max_lat() - b.min_lat()) * my);
-        side / f64::from(BLOCK_CELLS) / 2.0
+        let cells = f64::from(BLOCK_CELLS);
+        let width = (b.max_lon() - b.min_lon()) * mx / cells;
+        let height = (b.max_lat() - b.min_lat()) * my / cells;
+        width.hypot(height)
     }
 }
 
