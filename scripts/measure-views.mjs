@@ -3,8 +3,8 @@
 // of a running server, at four camera heights over one point: 300 km and 30 km looking straight
 // down, 3 km and 300 m looking north 45 degrees down. Each view opens in a fresh browser context
 // (nothing cached), waits until loading settles, then prints the requests made for tileset files
-// and content, the bytes received (as sent, compressed), and the features drawn by zoom (blocks
-// above zoom 14, buildings from it). Screenshots go to artifacts/views/.
+// and content (contents by zoom), the bytes received (as sent, compressed), and the features
+// drawn by zoom (blocks up to zoom 14, buildings at the leaves, zoom 15). Screenshots go to artifacts/views/.
 //
 //   node scripts/measure-views.mjs http://127.0.0.1:8080 LON LAT
 import { chromium } from 'playwright-core';
@@ -64,9 +64,14 @@ for (const [name, client] of Object.entries(clients)) {
     const page = await context.newPage();
     let files = 0, contents = 0, bytes = 0;
     const sizes = [];
+    const requested = {};
     page.on('requestfinished', (r) => {
       if (!r.url().includes('/3dtiles/')) return;
-      if (/\.glb(\?|$)/.test(r.url())) contents++; else files++;
+      if (/\.glb(\?|$)/.test(r.url())) {
+        contents++;
+        const z = Number(/(\d+)\/\d+\/\d+\.glb/.exec(r.url())?.[1]);
+        requested[z] = (requested[z] ?? 0) + 1;
+      } else files++;
       sizes.push(r.sizes().then((s) => { bytes += s.responseBodySize + s.responseHeadersSize; }));
     });
     const started = Date.now();
@@ -87,8 +92,9 @@ for (const [name, client] of Object.entries(clients)) {
     }
     const label = height >= 1000 ? `${height / 1000} km` : `${height} m`;
     await page.screenshot({ path: `${artifacts}/${name}-${label.replace(' ', '')}.png` });
-    const zooms = Object.entries(byZoom).map(([z, v]) => `z${z}: ${v.tiles} tiles, ${v.features} ${z < 14 ? 'blocks' : 'buildings'}`).join('; ');
-    console.log(`${name} at ${label} (pitch ${pitch}): ${files + contents} requests (${files} tileset files, ${contents} contents), ${(bytes / 1e6).toFixed(2)} MB, settled in ${seconds.toFixed(0)} s; drawn ${zooms || 'nothing'}${errors.length ? `; ERRORS: ${errors.join(' | ')}` : ''}`);
+    const zooms = Object.entries(byZoom).map(([z, v]) => `z${z}: ${v.tiles} tiles, ${v.features} ${z < 15 ? 'blocks' : 'buildings'}`).join('; ');
+    const loaded = Object.entries(requested).map(([z, n]) => `z${z} ${n}`).join(', ');
+    console.log(`${name} at ${label} (pitch ${pitch}): ${files + contents} requests (${files} tileset files, ${contents} contents: ${loaded}), ${(bytes / 1e6).toFixed(2)} MB, settled in ${seconds.toFixed(0)} s; drawn ${zooms || 'nothing'}${errors.length ? `; ERRORS: ${errors.join(' | ')}` : ''}`);
     await context.close();
   }
 }

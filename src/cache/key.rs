@@ -53,7 +53,9 @@ impl TileId {
             TileId::Xyz(_) => "xyz",
             TileId::Implicit { .. } => "implicit",
             TileId::Bbox(_) => "bbox",
-            TileId::World(_) => "world",
+            // 2: leaves at zoom 15, content kept gzip-compressed (rows of the first tree, whose
+            // zoom 14 drew buildings, are never read as this one's).
+            TileId::World(_) => "world2",
         }
     }
 
@@ -131,6 +133,12 @@ impl TileKey {
     /// A content tile of the world tileset, plain, roofs from tags.
     pub fn world(t: TileCoord) -> Self {
         Self::new(TileId::World(t))
+    }
+
+    /// Whether the tile is kept gzip-compressed (`super::content_coding`): the world
+    /// tileset's content, which browsers stream by the hundred.
+    pub fn kept_gzipped(&self) -> bool {
+        matches!(self.tile, TileId::World(_))
     }
 
     /// A box scene (`/scene`), plain, roofs from tags.

@@ -4,12 +4,14 @@
 //! ([`tile_cache`]), across replicas too on PostgreSQL. Box scenes are kept in memory
 //! with their figures ([`scene_cache`]), the tile regions of 3D Tiles trees ([`region_cache`]), the roof priors learned from each area's tags
 //! ([`roof_priors`]). Changed data invalidates exactly
-//! the content over the changed area, in both levels ([`invalidation`]), and other replicas drop
+//! the content over the changed area, in both levels ([`invalidation`]); the world tileset's
+//! content is kept gzip-compressed ([`content_coding`]), and other replicas drop
 //! theirs when they hear of it ([`replica_invalidation`]). Cached entries are plain
 //! bytes and an ETag string: HTTP types stay in `crate::routes`. Every in-memory cache has its
 //! share of one memory budget ([`budget`]).
 
 pub mod budget;
+pub mod content_coding;
 pub mod invalidation;
 pub mod key;
 mod region_cache;

@@ -4,10 +4,14 @@
 //! the data tiles under it.
 //!
 //! They are made in the background when the server starts (data tiles first, then each zoom up
-//! to the root) and again over an area whose data changed; `/health` says how far it got. A
+//! to the root) and again over an area whose data changed; `/health` says how far it got. A data
+//! tile's summary is kept in the tile store (`store/summaries.rs`), so a restart reads it
+//! instead of reading the data tile's buildings again; the coarser ones are made from them
+//! (cheap: four children each). A
 //! tileset file asked before its summaries exist answers 503 with `Retry-After`, not a tree
 //! with holes.
 
+use super::TileCache;
 use crate::pipeline::Generator;
 use crate::source::SourceError;
 use citymesh_core::geo::{GeoBbox, TileCoord};
@@ -26,6 +30,9 @@ pub struct SummaryProgress {
     /// Data tiles summarised so far, of `data_tiles`.
     pub done: usize,
     pub data_tiles: usize,
+    /// Of `done`, the summaries read from the store (kept from an earlier start) rather than
+    /// made from the data tile's buildings.
+    pub kept: usize,
     /// Every summary up to the root is made.
     pub ready: bool,
     /// Summaries held (data tiles and the tiles above them).
@@ -36,6 +43,7 @@ pub struct SummaryProgress {
 pub struct Summaries {
     tiles: RwLock<HashMap<TileCoord, Arc<TileSummary>>>,
     done: AtomicUsize,
+    kept: AtomicUsize,
     data_tiles: AtomicUsize,
     /// Every summary is made (watched by [`Summaries::ready`]).
     ready: tokio::sync::watch::Sender<bool>,
@@ -46,6 +54,7 @@ impl Summaries {
         Arc::new(Self {
             tiles: RwLock::default(),
             done: AtomicUsize::new(0),
+            kept: AtomicUsize::new(0),
             data_tiles: AtomicUsize::new(0),
             ready: tokio::sync::watch::channel(false).0,
         })
@@ -62,6 +71,7 @@ impl Summaries {
         SummaryProgress {
             done: self.done.load(Ordering::Relaxed),
             data_tiles: self.data_tiles.load(Ordering::Relaxed),
+            kept: self.kept.load(Ordering::Relaxed),
             ready: self.is_ready(),
             held: self.read().len(),
         }
@@ -104,23 +114,34 @@ impl Summaries {
         self.get(&own).map(|s| WorldTile::of(t, &s))
     }
 
-    /// Makes every summary: those of the source's data tiles, then each zoom up to the root.
-    pub async fn make_all(&self, generator: &Generator) -> Result<(), SourceError> {
+    /// Makes every summary: those of the source's data tiles (with `reuse`, read from `store`
+    /// where it kept one for this data version), then each zoom up to the root; what it makes
+    /// is kept in `store`.
+    pub async fn make_all(
+        &self,
+        generator: &Generator,
+        store: &TileCache,
+        reuse: bool,
+    ) -> Result<(), SourceError> {
         self.ready.send_replace(false);
         let tiles = generator.source.data_tiles().await?;
         self.data_tiles.store(tiles.len(), Ordering::Relaxed);
         self.done.store(0, Ordering::Relaxed);
-        self.remake(generator, tiles, Vec::new()).await?;
+        self.kept.store(0, Ordering::Relaxed);
+        self.remake(generator, tiles, Vec::new(), store, reuse)
+            .await?;
         self.ready.send_replace(true);
         Ok(())
     }
 
     /// Makes again the summaries of the data tiles over `area` (data changed there), and the
-    /// summaries above them.
+    /// summaries above them; the new ones are kept in `store` (the old rows were made from the
+    /// old data, and are never read).
     pub async fn remake_over(
         &self,
         generator: &Generator,
         area: &GeoBbox,
+        store: &TileCache,
     ) -> Result<(), SourceError> {
         let listed = generator.source.data_tiles().await?;
         let known: Vec<TileCoord> = self
@@ -136,31 +157,48 @@ impl Summaries {
             .filter(|t| over(t) && !listed.contains(t))
             .collect();
         self.data_tiles.store(listed.len(), Ordering::Relaxed);
-        self.remake(generator, changed, gone).await
+        self.remake(generator, changed, gone, store, false).await
     }
 
-    /// Summarises `tiles` (data tiles), forgets `gone`, and makes again every summary above
+    /// Summarises `tiles` (data tiles; reading the kept ones from `store` when `reuse`),
+    /// forgets `gone`, keeps what it made in `store`, and makes again every summary above
     /// either.
     async fn remake(
         &self,
         generator: &Generator,
         tiles: Vec<TileCoord>,
         gone: Vec<TileCoord>,
+        store: &TileCache,
+        reuse: bool,
     ) -> Result<(), SourceError> {
+        let reused = reuse.then_some(store);
         let mut results = futures_util::stream::iter(tiles.iter().copied())
-            .map(|t| summarise_data_tile(generator, t))
+            .map(|t| summarise_data_tile(generator, t, reused))
             .buffer_unordered(CONCURRENCY);
+        // What was made (not read back), to keep.
+        let mut made: Vec<(TileCoord, Option<Arc<TileSummary>>)> = Vec::new();
         while let Some(result) = results.next().await {
-            let (t, summary) = result?;
-            let mut held = self.write();
-            match summary {
-                Some(s) => held.insert(t, Arc::new(s)),
-                None => held.remove(&t),
-            };
-            drop(held);
+            let (t, summary, kept) = result?;
+            let summary = summary.map(Arc::new);
+            {
+                let mut held = self.write();
+                match &summary {
+                    Some(s) => held.insert(t, s.clone()),
+                    None => held.remove(&t),
+                };
+            }
+            if kept {
+                self.kept.fetch_add(1, Ordering::Relaxed);
+            } else {
+                made.push((t, summary));
+            }
             self.done.fetch_add(1, Ordering::Relaxed);
+            if made.len() >= KEEP_BATCH {
+                keep(store, &mut made).await;
+            }
         }
         drop(results);
+        keep(store, &mut made).await;
         {
             let mut held = self.write();
             for t in &gone {
@@ -197,11 +235,36 @@ impl Summaries {
     }
 }
 
-/// The summary of one data tile, from the source's buildings around it and the DEM.
+/// Data tile summaries written to the store at once.
+const KEEP_BATCH: usize = 64;
+
+/// Keeps `made` in `store` and empties it. A failure costs only the time to make them again at
+/// the next start.
+async fn keep(store: &TileCache, made: &mut Vec<(TileCoord, Option<Arc<TileSummary>>)>) {
+    if !made.is_empty() {
+        let rows: Vec<(TileCoord, Option<&TileSummary>)> =
+            made.iter().map(|(t, s)| (*t, s.as_deref())).collect();
+        if let Err(e) = store.put_summaries(&rows).await {
+            tracing::warn!(summaries = rows.len(), "cannot keep tile summaries: {e}");
+        }
+    }
+    made.clear();
+}
+
+/// The summary of one data tile: the one `kept` holds for this data version, else made from
+/// the source's buildings around it and the DEM. Says whether it was read from `kept`.
 async fn summarise_data_tile(
     generator: &Generator,
     t: TileCoord,
-) -> Result<(TileCoord, Option<TileSummary>), SourceError> {
+    kept: Option<&TileCache>,
+) -> Result<(TileCoord, Option<TileSummary>, bool), SourceError> {
+    if let Some(store) = kept {
+        match store.kept_summary(t).await {
+            Ok(Some(s)) => return Ok((t, Some(s), true)),
+            Ok(None) => {}
+            Err(e) => tracing::warn!(tile = ?t, "cannot read a kept summary ({e}); made again"),
+        }
+    }
     let set = generator.source.held_buildings(&t.bounds()).await?;
     let dem = generator.dem.clone();
     let roof_method = generator.roof_method;
@@ -212,7 +275,7 @@ async fn summarise_data_tile(
         TileSummary::of_data_tile(t, &set, &model, roof_method)
     })
     .await?;
-    Ok((t, summary))
+    Ok((t, summary, false))
 }
 
 /// The summary of a tile above the data tiles, from its children's (and the DEM under it when
@@ -250,11 +313,12 @@ pub fn keep_summaries(
     tokio::spawn(async move {
         let work = async {
             let started = std::time::Instant::now();
-            match summaries.make_all(&generator).await {
+            match summaries.make_all(&generator, &tiles, true).await {
                 Ok(()) => {
                     let p = summaries.progress();
                     tracing::info!(
                         data_tiles = p.data_tiles,
+                        kept = p.kept,
                         held = p.held,
                         ms = started.elapsed().as_millis() as u64,
                         "world tileset summaries made"
@@ -265,7 +329,7 @@ pub fn keep_summaries(
             loop {
                 match changes.recv().await {
                     Ok(crate::source::DataChanged { area }) => {
-                        if let Err(e) = summaries.remake_over(&generator, &area).await {
+                        if let Err(e) = summaries.remake_over(&generator, &area, &tiles).await {
                             tracing::error!(%area, "cannot remake summaries: {e}");
                         }
                         if let Err(e) = tiles.invalidate_area(&area).await {
@@ -273,7 +337,8 @@ pub fn keep_summaries(
                         }
                     }
                     Err(tokio::sync::broadcast::error::RecvError::Lagged(_)) => {
-                        if let Err(e) = summaries.make_all(&generator).await {
+                        // Changes were missed: the kept summaries may be of old data too.
+                        if let Err(e) = summaries.make_all(&generator, &tiles, false).await {
                             tracing::error!("cannot remake summaries: {e}");
                         }
                         tiles.invalidate_memory();

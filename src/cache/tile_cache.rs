@@ -116,6 +116,27 @@ impl TileCache {
         }
     }
 
+    /// The kept summary of `tile` made for this data version (`None`: none, or unreadable).
+    pub async fn kept_summary(
+        &self,
+        tile: citymesh_core::geo::TileCoord,
+    ) -> Result<Option<citymesh_core::tiles3d::TileSummary>, sqlx::Error> {
+        self.store.summary(tile, &self.data_version).await
+    }
+
+    /// Keeps `summaries` for this data version (`None`: the tile's row goes).
+    pub async fn put_summaries(
+        &self,
+        summaries: &[(
+            citymesh_core::geo::TileCoord,
+            Option<&citymesh_core::tiles3d::TileSummary>,
+        )],
+    ) -> Result<(), sqlx::Error> {
+        self.store
+            .put_summaries(summaries, &self.data_version)
+            .await
+    }
+
     /// How long a miss waits for another replica generating the same tile before generating it
     /// too (10 s unless set).
     pub fn with_lock_wait(mut self, wait: std::time::Duration) -> Self {
@@ -263,6 +284,15 @@ impl TileCache {
                 };
                 level.store(2, Ordering::Relaxed);
                 let (bytes, stats) = generate(prepared).await?;
+                let bytes = if key.kept_gzipped() {
+                    let raw = bytes.clone();
+                    // A failed compression (a panic) keeps the tile as it is: bytes say which.
+                    tokio::task::spawn_blocking(move || super::content_coding::gzip(&raw))
+                        .await
+                        .unwrap_or(bytes)
+                } else {
+                    bytes
+                };
                 let etag = etag_of(&bytes);
                 if self.epoch.load(Ordering::SeqCst) == epoch {
                     // Respond first: the row is written after.

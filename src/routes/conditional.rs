@@ -2,7 +2,8 @@
 //! `Cache-Control`.
 
 use super::headers::glb_headers;
-use crate::cache::{CacheLevel, CachedTile, etag_header};
+use crate::cache::{CacheLevel, CachedTile, content_coding, etag_header};
+use crate::error::AppError;
 use crate::pipeline::Generated;
 use axum::body::Body;
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
@@ -61,19 +62,74 @@ pub fn generated_response(
     conditional_response(request, generated.glb, etag, headers, cache_control)
 }
 
-/// A tile from the tile cache, saying which level it came from.
-pub fn cached_response(
+/// A tile from the tile cache, saying which level it came from. A tile kept gzip-compressed
+/// goes out so (`Content-Encoding: gzip`) when the client accepts it, else inflated, under an
+/// ETag of its own (each representation has its own validator).
+pub async fn cached_response(
     request: &HeaderMap,
     cached: CachedTile,
     level: CacheLevel,
     cache_control: &'static str,
-) -> Response {
+) -> Result<Response, AppError> {
     let mut headers = glb_headers(cached.generated.as_deref());
     headers.insert(
         axum::http::HeaderName::from_static("x-citymesh-cache"),
         HeaderValue::from_static(level.name()),
     );
-    conditional_response(request, cached.bytes, cached.etag, headers, cache_control)
+    if !content_coding::is_gzip(&cached.bytes) {
+        return Ok(conditional_response(
+            request,
+            cached.bytes,
+            cached.etag,
+            headers,
+            cache_control,
+        ));
+    }
+    headers.insert(header::VARY, HeaderValue::from_static("accept-encoding"));
+    let accepts = request
+        .get_all(header::ACCEPT_ENCODING)
+        .iter()
+        .filter_map(|v| v.to_str().ok())
+        .any(content_coding::accepts_gzip);
+    if accepts {
+        headers.insert(header::CONTENT_ENCODING, HeaderValue::from_static("gzip"));
+        return Ok(conditional_response(
+            request,
+            cached.bytes,
+            cached.etag,
+            headers,
+            cache_control,
+        ));
+    }
+    let etag = cached
+        .etag
+        .to_str()
+        .ok()
+        .and_then(|e| {
+            HeaderValue::from_str(&format!("{}-identity\"", e.trim_end_matches('"'))).ok()
+        })
+        .unwrap_or(cached.etag);
+    if matches(request, &etag) {
+        return Ok(conditional_response(
+            request,
+            Bytes::new(),
+            etag,
+            headers,
+            cache_control,
+        ));
+    }
+    let gzipped = cached.bytes;
+    let bytes = tokio::task::spawn_blocking(move || content_coding::gunzip(&gzipped))
+        .await
+        .map_err(AppError::from)?
+        .map_err(|e| AppError::Internal(format!("a stored tile does not inflate: {e}")))?;
+    Ok(conditional_response(
+        request,
+        bytes,
+        etag,
+        headers,
+        cache_control,
+    ))
 }
 
 #[cfg(test)]

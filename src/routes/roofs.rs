@@ -108,12 +108,7 @@ pub async fn cached_tile(
                 },
             )
             .await?;
-        return Ok(cached_response(
-            request_headers,
-            cached,
-            level,
-            cache_control,
-        ));
+        return cached_response(request_headers, cached, level, cache_control).await;
     };
     let key = key.with_roofs(plan.source);
     let (cached, level) = state
@@ -134,7 +129,7 @@ pub async fn cached_tile(
             },
         )
         .await?;
-    let mut response = cached_response(request_headers, cached, level, cache_control);
+    let mut response = cached_response(request_headers, cached, level, cache_control).await?;
     add_roofs_header(&mut response, &plan.chosen);
     Ok(response)
 }

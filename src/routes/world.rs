@@ -1,7 +1,7 @@
 //! The world tileset: `GET /3dtiles/tileset.json` without a box, and the files its tree names
 //! under `/3dtiles/world/{z}/{x}/{y}.json` (the tileset file whose root is that tile) and
 //! `.glb` (its content). Every answer reads a bounded number of summaries: a tileset file at
-//! most 85, a block tile one; a content tile of buildings at most the data tiles around one.
+//! most 85, a block tile one; a leaf (the buildings) at most the data tiles around one.
 
 use super::params::{TileQuery, encoding_for, whole_number};
 use super::roofs::cached_tile;
@@ -114,11 +114,11 @@ fn parse_world(
     Ok((t, ext))
 }
 
-/// A file of the world tileset: a tileset file (`.json`: the tile, the two levels below it and
-/// references to the next files) or a tile's content (`.glb`, ECEF: blocks from zoom 9 to 13,
-/// the buildings themselves from zoom 14, roofs flattened above zoom 16).
+/// A file of the world tileset: a tileset file (`.json`: the tile, the levels below it and
+/// references to the next files, or every level down to the leaves from zoom 12) or a tile's content (`.glb`, ECEF: blocks from zoom 9 to 14,
+/// the buildings themselves in full detail at zoom 15).
 #[utoipa::path(get, path = "/3dtiles/world/{z}/{x}/{y}", tag = "3d tiles",
-    params(("z" = u8, Path, description = "Zoom of the tile (Web Mercator, as XYZ tiles), 0 to 16", minimum = 0, maximum = 16),
+    params(("z" = u8, Path, description = "Zoom of the tile (Web Mercator, as XYZ tiles), 0 to 15", minimum = 0, maximum = 15),
            ("x" = u32, Path, description = "Column from the west", minimum = 0),
            ("y" = String, Path, description = "Row from the north, then `.json` (the tileset file whose root is this tile) or `.glb` (its content)", example = "5625.glb"),
            TileQuery),
@@ -169,7 +169,7 @@ pub async fn world_file(
     }
     let encoding = encoding_for(query.encoding, &request_headers, CONTENT_ENCODING);
     let key = TileKey::world(tile).with_encoding(encoding);
-    if tile.z >= DATA_ZOOM {
+    if tile.z > DATA_ZOOM {
         return cached_tile(
             &state,
             &request_headers,
@@ -217,10 +217,5 @@ async fn block_tile(
             Ok::<_, AppError>((g.glb, g.stats))
         })
         .await?;
-    Ok(super::conditional::cached_response(
-        request_headers,
-        cached,
-        level,
-        CONTENT_CACHE_CONTROL,
-    ))
+    super::conditional::cached_response(request_headers, cached, level, CONTENT_CACHE_CONTROL).await
 }

@@ -118,8 +118,8 @@ async fn the_world_tileset_holds_every_building_once_per_level_inside_its_region
     let mut files = 0;
     let mut listed = Vec::new();
     walk(&app, "/3dtiles/tileset.json", &mut files, &mut listed).await;
-    // The root file (zooms 0-2), then one file each at zooms 3, 6, 9 and 12 on the way down,
-    // then one per zoom-15 tile under the four data tiles.
+    // The root file (zooms 0-2), then one file each at zooms 3, 6 and 9 on the way down, then
+    // the zoom-12 file that lists everything down to the leaves (zoom 15) itself.
     let mut at: BTreeMap<u8, usize> = BTreeMap::new();
     for l in &listed {
         *at.entry(zoom_of(&l.uri)).or_default() += 1;
@@ -128,7 +128,12 @@ async fn the_world_tileset_holds_every_building_once_per_level_inside_its_region
     assert_eq!(at.keys().copied().min(), Some(9), "no content above zoom 9");
     assert_eq!(at.get(&14), Some(&4));
     assert_eq!(at.get(&15), Some(&16));
-    assert_eq!(at.get(&16), Some(&64));
+    assert_eq!(
+        at.keys().copied().max(),
+        Some(15),
+        "the leaves are at zoom 15"
+    );
+    assert_eq!(files, 5, "tileset files at zooms 0, 3, 6, 9 and 12");
 
     let mut rows_at: BTreeMap<u8, usize> = BTreeMap::new();
     let mut ids_at: BTreeMap<u8, std::collections::BTreeSet<String>> = BTreeMap::new();
@@ -163,16 +168,23 @@ async fn the_world_tileset_holds_every_building_once_per_level_inside_its_region
                 "{id} twice at {z}"
             );
         }
-        if z == 16 {
+        if z == 15 {
             assert_eq!(l.error, 0.0);
+        } else {
+            // A block's error is at least its cell's diagonal: 16 x 16 cells over the tile.
+            let cell_m = 40_075_016.7 * 49.44_f64.to_radians().cos() / f64::from(1u32 << (z + 4));
+            assert!(
+                l.error >= cell_m * 2f64.sqrt() * 0.99,
+                "{}: {}",
+                l.uri,
+                l.error
+            );
         }
     }
     println!("features by zoom: {rows_at:?}");
-    // From the data tiles down, every building and part once (3,026 records, 7 outlines wholly
-    // covered by their parts); above, blocks, each a cell's buildings merged.
-    for z in 14..=16 {
-        assert_eq!(rows_at[&z], 3019, "zoom {z}");
-    }
+    // At the leaves, every building and part once (3,026 records, 7 outlines wholly covered by
+    // their parts); above, blocks, each a cell's buildings merged.
+    assert_eq!(rows_at[&15], 3019, "zoom 15");
     // A block is a cell of a 16 x 16 grid (the tiles four zooms down) holding groups'
     // representative points: as many blocks as such cells (groups that cannot be built aside).
     let set = citymesh_core::building::set::BuildingSet::new(
@@ -180,7 +192,7 @@ async fn the_world_tileset_holds_every_building_once_per_level_inside_its_region
             .unwrap()
             .buildings,
     );
-    for z in 9..14u8 {
+    for z in 9..=14u8 {
         let cells: std::collections::BTreeSet<_> =
             set.clusters().iter().map(|c| c.xyz_tile(z + 4)).collect();
         assert_eq!(rows_at[&z], cells.len(), "zoom {z}");
@@ -210,6 +222,12 @@ async fn world_files_refuse_what_is_not_in_the_tree() {
             "/3dtiles/world/3/4/2.glb",
             StatusCode::NOT_FOUND,
             "no_content",
+        ),
+        // The leaves are at zoom 15.
+        (
+            "/3dtiles/world/16/34298/22495.glb",
+            StatusCode::NOT_FOUND,
+            "no_such_tile",
         ),
         (
             "/3dtiles/world/17/1/1.glb",
@@ -245,4 +263,38 @@ async fn world_files_refuse_what_is_not_in_the_tree() {
         get(&app, "/3dtiles/world/12/2143/1405.json").await.status,
         StatusCode::OK
     );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_restart_reads_the_kept_summaries_and_serves_the_same_tree() {
+    let db = tempfile::tempdir().unwrap();
+    let first = common::kirchfeld_state(&db).await;
+    let made = common::world_ready(&first).await;
+    // Made from the buildings the first time, and kept.
+    assert_eq!(
+        (made.data_tiles, made.done, made.kept),
+        (4, 4, 0),
+        "{made:?}"
+    );
+    let app = common::app_of(first.clone());
+    let tree = get(&app, "/3dtiles/world/12/2143/1405.json").await;
+    assert_eq!(tree.status, StatusCode::OK);
+    let block = get(&app, "/3dtiles/world/14/8574/5623.glb").await;
+    assert_eq!(block.status, StatusCode::OK);
+    common::settle_writes().await;
+
+    // The next start reads all four instead of the data tiles' buildings.
+    let again = common::kirchfeld_state(&db).await;
+    let read = common::world_ready(&again).await;
+    assert_eq!(
+        (read.data_tiles, read.done, read.kept),
+        (4, 4, 4),
+        "{read:?}"
+    );
+    assert_eq!(read.held, made.held);
+    let app = common::app_of(again);
+    let tree_again = get(&app, "/3dtiles/world/12/2143/1405.json").await;
+    assert_eq!(tree_again.json(), tree.json());
+    let block_again = get(&app, "/3dtiles/world/14/8574/5623.glb").await;
+    assert_eq!(block_again.body, block.body);
 }

@@ -123,6 +123,94 @@ async fn generated_tiles_are_stored_replaced_deleted_and_evicted_alike() {
     assert_eq!(on_postgres, expected);
 }
 
+/// A data tile's summary of Karlsruhe-Kirchfeld, made from its buildings and the DEM.
+fn kirchfeld_summary() -> citymesh_core::tiles3d::TileSummary {
+    let t = TileCoord::new(14, 8574, 5623).unwrap();
+    let set = citymesh_core::building::set::BuildingSet::new(
+        citymesh_core::osm::read_buildings(&common::osm_bytes("karlsruhe-kirchfeld.osm.pbf"))
+            .unwrap()
+            .buildings,
+    );
+    let dem = citymesh::dem::DemStore::open(&common::dem_dir(), 64 << 20);
+    let model = dem.lookup(&t.bounds().grown_by_degrees(0.01)).model;
+    citymesh_core::tiles3d::TileSummary::of_data_tile(
+        t,
+        &set,
+        &model,
+        citymesh_core::building::RoofMethod::default(),
+    )
+    .unwrap()
+}
+
+async fn summary_scenario(db: Database) -> Vec<String> {
+    let store = TileStore::open(&db, u64::MAX, "test").await.unwrap();
+    let summary = kirchfeld_summary();
+    let t = summary.tile;
+    let parent = TileCoord::new(13, t.x / 2, t.y / 2).unwrap();
+    let mut seen = Vec::new();
+    store
+        .put_summaries(&[(t, Some(&summary)), (parent, Some(&summary))], "v1")
+        .await
+        .unwrap();
+    // Read back exactly, for its data version only.
+    seen.push(format!(
+        "{}",
+        store.summary(t, "v1").await.unwrap() == Some(summary.clone())
+    ));
+    seen.push(format!(
+        "{}",
+        store.summary(t, "v2").await.unwrap().is_none()
+    ));
+    // A row naming another tile is never taken for this one's.
+    seen.push(format!(
+        "{}",
+        store.summary(parent, "v1").await.unwrap().is_none()
+    ));
+    // Made again for another version: the row is replaced.
+    store
+        .put_summaries(&[(t, Some(&summary))], "v2")
+        .await
+        .unwrap();
+    seen.push(format!(
+        "{} {}",
+        store.summary(t, "v1").await.unwrap().is_none(),
+        store.summary(t, "v2").await.unwrap().is_some()
+    ));
+    // Data changed over a corner of the tile: its summary and its parent's go with the tiles.
+    let b = t.bounds();
+    let corner = citymesh_core::geo::GeoBbox::new(
+        b.min_lon(),
+        b.min_lat(),
+        b.min_lon() + 1e-4,
+        b.min_lat() + 1e-4,
+    )
+    .unwrap();
+    store.delete_overlapping(&corner).await.unwrap();
+    seen.push(format!(
+        "{}",
+        store.summary(t, "v2").await.unwrap().is_none()
+    ));
+    // A tile without buildings any more: its row goes.
+    store
+        .put_summaries(&[(t, Some(&summary))], "v3")
+        .await
+        .unwrap();
+    store.put_summaries(&[(t, None)], "v3").await.unwrap();
+    seen.push(format!(
+        "{}",
+        store.summary(t, "v3").await.unwrap().is_none()
+    ));
+    seen
+}
+
+#[tokio::test]
+async fn tile_summaries_are_kept_per_data_version_and_dropped_with_changed_data_alike() {
+    let (on_sqlite, on_postgres) = on_both!(summary_scenario);
+    let expected = ["true", "true", "true", "true true", "true", "true"];
+    assert_eq!(on_sqlite, expected);
+    assert_eq!(on_postgres, expected);
+}
+
 async fn data_tile_scenario(db: Database) -> Vec<String> {
     // Room for two 1,000-byte Overpass tiles; imported ones never count or leave.
     // Uses and fetches are stamped in whole seconds: the test moves the clock a second on.

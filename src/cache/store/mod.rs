@@ -28,6 +28,7 @@ macro_rules! bind_key {
 }
 
 mod replicas;
+mod summaries;
 
 pub use replicas::{DATA_CHANGED_CHANNEL, DataChangedNote, GenerationLock};
 
@@ -389,8 +390,8 @@ impl TileStore {
         Ok(())
     }
 
-    /// Deletes every stored tile (any scheme, encoding or version) whose ground overlaps `area`
-    /// and, on PostgreSQL, tells every replica in the same transaction (a replica hears of the
+    /// Deletes every stored tile (any scheme, encoding or version) and tile summary whose
+    /// ground overlaps `area` and, on PostgreSQL, tells every replica in the same transaction (a replica hears of the
     /// change only once the tiles are gone); answers how many were deleted.
     pub async fn delete_overlapping(&self, area: &GeoBbox) -> Result<u64, sqlx::Error> {
         let note = DataChangedNote {
@@ -406,6 +407,14 @@ impl TileStore {
                 .bind(area.max_lat())
                 .bind(area.min_lat())
                 .fetch_all(&mut *tx)
+                .await?;
+            // The world tileset's summaries there were made from the old data too.
+            sqlx::query(summaries::DELETE_OVERLAPPING_SUMMARIES)
+                .bind(area.max_lon())
+                .bind(area.min_lon())
+                .bind(area.max_lat())
+                .bind(area.min_lat())
+                .execute(&mut *tx)
                 .await?;
             if announce {
                 sqlx::query("SELECT pg_notify($1, $2)")

@@ -6,6 +6,7 @@
 mod regions;
 mod subtree;
 mod summary;
+mod summary_bytes;
 mod tileset;
 mod world;
 
@@ -16,5 +17,6 @@ pub use subtree::{
     write_subtree,
 };
 pub use summary::{BLOCK_CELLS, BLOCK_ZOOM, Block, DATA_ZOOM, LEAF_ZOOM, TileSummary};
+pub use summary_bytes::SummaryBytesError;
 pub use tileset::{ImplicitLayout, Tiling, tileset_json};
-pub use world::{LEVELS_PER_FILE, WorldTile, children_of, world_tileset_json};
+pub use world::{LEVELS_PER_FILE, WorldTile, children_of, next_file_zoom, world_tileset_json};

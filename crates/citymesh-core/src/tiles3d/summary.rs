@@ -21,11 +21,13 @@ use crate::geo::{GeoBbox, LocalFrame, Region, TileCoord, mercator_y};
 use crate::osm::{BuildingRecord, OsmId, Ring, RingNode};
 use crate::terrain::{CellMask, ElevationModel};
 
-/// The zoom of data tiles: the coarsest level whose content draws the buildings themselves.
+/// The zoom of data tiles: the finest level whose content draws blocks (from the data tile's
+/// own summary), the level above the buildings themselves.
 pub const DATA_ZOOM: u8 = 14;
 
-/// The deepest level of the world quadtree: tiles of about 400 m at 49° N, in full detail.
-pub const LEAF_ZOOM: u8 = 16;
+/// The deepest level of the world quadtree, the buildings in full detail: tiles of about 800 m
+/// at 49° N, a quarter of a data tile each.
+pub const LEAF_ZOOM: u8 = 15;
 
 /// The coarsest level with content (tiles of about 50 km at 49° N): above it a tile's blocks
 /// would be smaller than a pixel wherever it is drawn, so coarser tiles only lead to their
@@ -206,7 +208,8 @@ impl TileSummary {
             region: Region::of_bbox(&extent, lo, hi + tallest).grown(SLACK_M),
             reach: (reach_lon, reach_lat),
             roof_error_m: roof_error,
-            ground_error_m: 0.0,
+            // Its blocks stand on the coarse ground grid over the square.
+            ground_error_m: crate::scene::LevelOfDetail::ground_error(&square, model),
             blocks,
             ground_cells: CellMask::ALL,
         })
@@ -285,9 +288,9 @@ impl TileSummary {
         })
     }
 
-    /// Whether the tile draws blocks (between [`BLOCK_ZOOM`] and the data tiles).
+    /// Whether the tile draws blocks (from [`BLOCK_ZOOM`] to the data tiles).
     pub fn draws_blocks(&self) -> bool {
-        (BLOCK_ZOOM..DATA_ZOOM).contains(&self.tile.z)
+        (BLOCK_ZOOM..=DATA_ZOOM).contains(&self.tile.z)
     }
 
     /// The region of `tile`, a tile below this data tile: its square grown by the groups'

@@ -1,19 +1,19 @@
 //! The world tileset: one explicit 3D Tiles tree over everything a server holds, on the Web
 //! Mercator quadtree of the XYZ tiles and data tiles, written as nested tileset files of
-//! [`LEVELS_PER_FILE`] levels each (external tilesets), so every file lists at most
-//! 1 + 4 + 16 + 64 tiles whatever the area.
+//! [`LEVELS_PER_FILE`] levels each, the last one down to the leaves (external tilesets;
+//! [`next_file_zoom`]), so every file lists at most 1 + 4 + 16 + 64 tiles whatever the area.
 //!
 //! - Zooms 0 to [`BLOCK_ZOOM`] - 1: no content, only the way down to where data is.
-//! - [`BLOCK_ZOOM`] to [`DATA_ZOOM`] - 1: blocks made from the tile's summary (the buildings of a
+//! - [`BLOCK_ZOOM`] to [`DATA_ZOOM`]: blocks made from the tile's summary (the buildings of a
 //!   cell merged into one prism) on a coarse ground grid.
-//! - [`DATA_ZOOM`] to [`LEAF_ZOOM`]: the buildings themselves, whole, on the DEM ground; roofs
-//!   flattened above the leaves.
+//! - [`LEAF_ZOOM`] (one level below the data tiles): the buildings themselves in full detail,
+//!   whole, on the DEM ground.
 //!
 //! A tile exists where data is (its summary exists), and the tiles below a data tile all exist
 //! (ground where they hold no building). Each tile's region holds its content and its
 //! descendants' (from the summaries, never from generating content); its geometric error is
-//! what its content leaves out: half the largest roof rise for flattened roofs, half a block
-//! cell's side (and the coarse ground's error) for blocks, the tile's width for tiles without
+//! what its content leaves out: a block cell's diagonal (or the coarse ground's error, or half
+//! the largest roof rise flattened, whichever is larger) for blocks, the tile's width for tiles without
 //! content (so a client always goes on into them), 0 at the leaves.
 
 use super::summary::{BLOCK_ZOOM, DATA_ZOOM, LEAF_ZOOM, TileSummary};
@@ -23,6 +23,19 @@ use serde_json::{Value, json};
 
 /// Levels a tileset file lists with content before it refers to the next files.
 pub const LEVELS_PER_FILE: u8 = 3;
+
+/// The zoom of the next files below a file whose root is at `z`: files start every
+/// [`LEVELS_PER_FILE`] zooms from the root (0, 3, 6, 9, 12), and a file that would leave only
+/// the leaves to the next ones lists them itself (the file of zoom 12 lists 12 to 15), so a
+/// leaf is never a file of its own.
+pub fn next_file_zoom(z: u8) -> u8 {
+    let next = (z / LEVELS_PER_FILE + 1) * LEVELS_PER_FILE;
+    if next >= LEAF_ZOOM {
+        LEAF_ZOOM + 1
+    } else {
+        next
+    }
+}
 
 /// A tile of the world tree as a tileset lists it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -46,20 +59,13 @@ impl WorldTile {
     /// tiles, the data tile's above it for tiles below one.
     pub fn of(tile: TileCoord, summary: &TileSummary) -> Self {
         if tile.z > DATA_ZOOM {
-            let error = if tile.z >= LEAF_ZOOM {
-                0.0
-            } else {
-                summary.roof_error_m
-            };
             return Self {
                 region: summary.region_below(&tile),
-                geometric_error: error,
+                geometric_error: 0.0,
                 content: true,
             };
         }
-        let geometric_error = if tile.z == DATA_ZOOM {
-            summary.roof_error_m
-        } else if summary.draws_blocks() {
+        let geometric_error = if summary.draws_blocks() {
             summary
                 .block_error_m()
                 .max(summary.ground_error_m)
@@ -84,8 +90,8 @@ pub fn children_of(t: &TileCoord) -> [TileCoord; 4] {
     })
 }
 
-/// The tileset file whose root is `top`: `top` and the levels below it down to
-/// [`LEVELS_PER_FILE`] - 1 with their content, then the next files' roots as external
+/// The tileset file whose root is `top`: `top` and the levels below it down to the one above
+/// [`next_file_zoom`] with their content, then the next files' roots as external
 /// tilesets. `lookup` answers each tile that exists. `prefix` is put before every URI (the way
 /// from this file's folder to the tree's: `../../` for `world/{z}/{x}/{y}.json`), `query` after
 /// it. `None` when `top` does not exist.
@@ -103,7 +109,7 @@ pub fn world_tileset_json(
     };
     let root_tile = lookup(top)?;
     let uri = |t: &TileCoord, ext: &str| format!("{prefix}{}/{}/{}.{ext}{query}", t.z, t.x, t.y);
-    let mut root = listed(top, root_tile, &lookup, &uri, top.z + LEVELS_PER_FILE);
+    let mut root = listed(top, root_tile, &lookup, &uri, next_file_zoom(top.z));
     root["refine"] = json!("REPLACE");
     let mut schema = BUILDING_CLASS.schema();
     schema["id"] = json!("citymesh_tileset");
@@ -157,4 +163,23 @@ fn listed(
         v["children"] = children.into();
     }
     v
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn files_start_where_a_file_ends_on_the_leaves() {
+        let roots: Vec<u8> = std::iter::successors(Some(0u8), |&z| {
+            Some(next_file_zoom(z)).filter(|&n| n <= LEAF_ZOOM)
+        })
+        .collect();
+        assert_eq!(roots, [0, 3, 6, 9, 12]);
+        // The last file lists its root and every level down to the leaves.
+        assert_eq!(next_file_zoom(12), LEAF_ZOOM + 1);
+        // A file asked for off the tree's roots still ends on one.
+        assert_eq!(next_file_zoom(4), 6);
+        assert_eq!(next_file_zoom(13), LEAF_ZOOM + 1);
+    }
 }
