@@ -298,3 +298,44 @@ async fn a_restart_reads_the_kept_summaries_and_serves_the_same_tree() {
     let block_again = get(&app, "/3dtiles/world/14/8574/5623.glb").await;
     assert_eq!(block_again.body, block.body);
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn world_content_goes_gzipped_to_who_accepts_it_and_inflated_to_the_rest() {
+    let db = tempfile::tempdir().unwrap();
+    let state = common::kirchfeld_state(&db).await;
+    common::world_ready(&state).await;
+    let app = common::app_of(state);
+    let ask = |path: &'static str, encoding: Option<&'static str>| {
+        let mut r = axum::http::Request::get(path);
+        if let Some(e) = encoding {
+            r = r.header("accept-encoding", e);
+        }
+        common::send(&app, r.body(axum::body::Body::empty()).unwrap())
+    };
+    for path in [
+        "/3dtiles/world/14/8574/5623.glb",
+        "/3dtiles/world/15/17149/11247.glb",
+    ] {
+        let plain = ask(path, None).await;
+        let gzipped = ask(path, Some("br;q=1.0, gzip;q=0.8")).await;
+        let refused = ask(path, Some("gzip;q=0")).await;
+        assert_eq!(plain.status, StatusCode::OK, "{path}: {}", plain.text());
+        assert_eq!(gzipped.status, StatusCode::OK, "{path}");
+        assert!(plain.headers.get("content-encoding").is_none(), "{path}");
+        assert!(refused.headers.get("content-encoding").is_none(), "{path}");
+        assert_eq!(gzipped.header("content-encoding"), "gzip", "{path}");
+        assert!(gzipped.header("vary").contains("accept-encoding"), "{path}");
+        // The same content either way, under two validators.
+        let inflated = citymesh::cache::content_coding::gunzip(&gzipped.body).unwrap();
+        assert_eq!(&inflated[..], &plain.body[..], "{path}");
+        assert_eq!(refused.body, plain.body, "{path}");
+        assert_valid_glb(&plain.body);
+        assert_ne!(plain.header("etag"), gzipped.header("etag"), "{path}");
+        assert!(gzipped.body.len() < plain.body.len(), "{path}");
+        println!(
+            "{path}: {} bytes, {} gzipped",
+            plain.body.len(),
+            gzipped.body.len()
+        );
+    }
+}
