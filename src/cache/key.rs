@@ -2,6 +2,7 @@
 //! which roof shapes went into it. Everything else its bytes depend on (generator version, DEM
 //! and `--osm` files) is the cache's data version, fixed for a running server.
 
+use citymesh_core::building::TagProperties;
 use citymesh_core::geo::{GeoBbox, ImplicitTile, TileCoord};
 /// How the bytes are encoded (the core's encodings: plain, quantized, meshopt).
 pub use citymesh_core::mesh::Encoding;
@@ -114,6 +115,8 @@ pub struct TileKey {
     pub tile: TileId,
     pub encoding: Encoding,
     pub roofs: RoofSource,
+    /// Whether each building carries every OSM tag too (`tags=all`).
+    pub tags: TagProperties,
 }
 
 impl TileKey {
@@ -156,11 +159,26 @@ impl TileKey {
         Self { roofs, ..self }
     }
 
+    /// The same tile, its buildings carrying the properties `tags` says.
+    pub fn with_tags(self, tags: TagProperties) -> Self {
+        Self { tags, ..self }
+    }
+
+    /// What the content is made of besides its area and encoding, as stored (the `roofs`
+    /// column): the roof source's name, then `+tags` when every OSM tag is carried.
+    pub fn content_name(&self) -> String {
+        match self.tags {
+            TagProperties::Named => self.roofs.name(),
+            TagProperties::All => format!("{}+tags", self.roofs.name()),
+        }
+    }
+
     fn new(tile: TileId) -> Self {
         Self {
             tile,
             encoding: Encoding::default(),
             roofs: RoofSource::default(),
+            tags: TagProperties::default(),
         }
     }
 }
@@ -195,6 +213,10 @@ mod tests {
             "classified:00000000000000ab:0000000000000010"
         );
         assert_eq!(RoofSource::OsmTags.name(), "osm");
+        assert_eq!(xyz.content_name(), "osm");
+        let tagged = xyz.with_tags(TagProperties::All);
+        assert_ne!(tagged, xyz);
+        assert_eq!(tagged.content_name(), "osm+tags");
         assert_eq!(
             RoofSource::Inferred { priors: 0x2a }.name(),
             "inferred:000000000000002a"

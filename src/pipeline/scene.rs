@@ -7,8 +7,8 @@ use crate::generation_stats::GenerationStats;
 use crate::pipeline::PipelineError;
 use crate::source::AreaBuildings;
 use bytes::Bytes;
-use citymesh_core::building::HeightBase;
 use citymesh_core::building::set::BuildingSet;
+use citymesh_core::building::{HeightBase, TagProperties};
 use citymesh_core::mesh::Encoding;
 use citymesh_core::scene::{RoofChoice, SceneArea, SceneRequest};
 use std::sync::Arc;
@@ -80,15 +80,24 @@ pub struct MeshOptions {
     pub encoding: Encoding,
     /// The ground a building's `height` is counted from.
     pub heights: HeightBase,
+    /// Whether each building carries every OSM tag too.
+    pub tags: TagProperties,
 }
 
 impl MeshOptions {
-    /// `encoding`, with heights as the server counts them (`--height-base`).
+    /// `encoding`, with heights as the server counts them (`--height-base`), the named
+    /// properties only.
     pub fn new(generator: &Generator, encoding: Encoding) -> Self {
         Self {
             encoding,
             heights: generator.height_base,
+            tags: TagProperties::default(),
         }
+    }
+
+    /// The same options, each building carrying the properties `tags` says.
+    pub fn with_tags(self, tags: TagProperties) -> Self {
+        Self { tags, ..self }
     }
 }
 
@@ -124,7 +133,8 @@ async fn generate_within(
             .map_err(|e| PipelineError::InvalidArea(e.to_string()))?
             .with_encoding(mesh.encoding)
             .with_heights(mesh.heights)
-            .with_roof_method(roof_method);
+            .with_roof_method(roof_method)
+            .with_tags(mesh.tags);
         if let Some(roofs) = &roofs {
             request = request.with_roofs(roofs);
         }

@@ -4,11 +4,32 @@ use crate::error::AppError;
 use crate::pipeline::{MeshOptions, RoofsParam};
 use crate::state::{AppState, Limits};
 use axum::http::{HeaderMap, header};
-use citymesh_core::building::HeightBase;
+use citymesh_core::building::{HeightBase, TagProperties};
 use citymesh_core::geo::GeoBbox;
 use citymesh_core::mesh::Encoding;
 use serde::Deserialize;
 use utoipa::IntoParams;
+
+/// Which properties each building carries, as asked with `?tags=`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, utoipa::ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum TagsParam {
+    /// The named properties only (`osm_id`, `height`, `roof_shape`, Cesium OSM Buildings'
+    /// names...): the default.
+    #[default]
+    Named,
+    /// Also `osm_tags`: every OSM tag of the building as one JSON object.
+    All,
+}
+
+impl From<TagsParam> for TagProperties {
+    fn from(t: TagsParam) -> Self {
+        match t {
+            TagsParam::Named => TagProperties::Named,
+            TagsParam::All => TagProperties::All,
+        }
+    }
+}
 
 /// How a GLB stores its vertices, as asked with `?encoding=`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize, utoipa::ToSchema)]
@@ -121,6 +142,7 @@ pub fn mesh_options(
     MeshOptions {
         encoding: encoding_for(encoding, headers, default),
         heights: heights_for(state, heights),
+        tags: TagProperties::default(),
     }
 }
 
@@ -146,22 +168,35 @@ pub struct TileQuery {
     /// parameter, an `encoding` parameter in `Accept: model/gltf-binary; encoding=...` is used.
     #[param(inline)]
     pub encoding: Option<EncodingParam>,
+    /// `all` gives each building one more property, `osm_tags`: every OSM tag of the element
+    /// as a JSON object (for apps that style or filter by any tag); `named` (the default)
+    /// carries the named properties only.
+    #[param(inline)]
+    pub tags: Option<TagsParam>,
 }
 
-/// The `roofs` and `encoding` of a query string (most tile requests have none: nothing to parse
+impl TileQuery {
+    /// The properties asked for.
+    pub fn tags(&self) -> TagProperties {
+        self.tags.unwrap_or_default().into()
+    }
+}
+
+/// The `roofs`, `encoding` and `tags` of a query string (most tile requests have none: nothing to parse
 /// then).
 pub fn tile_query_of(query: Option<&str>) -> Result<TileQuery, AppError> {
     match query {
         None | Some("") => Ok(TileQuery {
             roofs: None,
             encoding: None,
+            tags: None,
         }),
         Some(q) => serde_urlencoded::from_str::<TileQuery>(q).map_err(|e| {
             AppError::bad_request(
                 "invalid_query",
                 format!(
                     "{e}: roofs is `osm` (the default), `classified` or `inferred`; encoding \
-                     is `plain`, `quantized` or `meshopt`"
+                     is `plain`, `quantized` or `meshopt`; tags is `named` (the default) or `all`"
                 ),
             )
         }),

@@ -95,7 +95,7 @@ pub async fn cached_tile(
                 key,
                 || gather(&state.generator, area),
                 |buildings| async {
-                    let mesh = MeshOptions::new(&state.generator, key.encoding);
+                    let mesh = MeshOptions::new(&state.generator, key.encoding).with_tags(key.tags);
                     let g = generate(
                         &state.generator,
                         area,
@@ -122,7 +122,7 @@ pub async fn cached_tile(
                     area,
                     Buildings::Loaded(buildings),
                     Some(plan.choice),
-                    MeshOptions::new(&state.generator, key.encoding),
+                    MeshOptions::new(&state.generator, key.encoding).with_tags(key.tags),
                 )
                 .await?;
                 Ok::<_, AppError>((g.glb, g.stats))
@@ -163,7 +163,9 @@ pub async fn generate_with_roofs(
             ));
         }
     };
-    let key = TileKey::bbox(bbox).with_encoding(mesh.encoding);
+    let key = TileKey::bbox(bbox)
+        .with_encoding(mesh.encoding)
+        .with_tags(mesh.tags);
     let (scene, hit) = state
         .tiles
         .scenes

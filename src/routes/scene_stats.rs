@@ -165,6 +165,7 @@ pub async fn scene_stats(
     let mesh = MeshOptions {
         encoding: Encoding::Plain,
         heights: heights_for(&state, query.height_base),
+        tags: Default::default(),
     };
     let (generated, chosen) = generate_with_roofs(&state, area, roofs, mesh).await?;
     let mut stats = SceneStats::of(&generated, &chosen);

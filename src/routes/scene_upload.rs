@@ -159,6 +159,7 @@ pub async fn post_scene(
         MeshOptions {
             encoding: Encoding::Plain,
             heights: heights_for(&state, query.height_base),
+            tags: Default::default(),
         },
     )
     .await?;

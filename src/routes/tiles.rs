@@ -65,7 +65,9 @@ pub async fn tile_glb(
     }
     let asked = tile_query_of(query.as_deref())?;
     let encoding = encoding_for(asked.encoding, request_headers, Encoding::Plain);
-    let key = TileKey::xyz(tile).with_encoding(encoding);
+    let key = TileKey::xyz(tile)
+        .with_encoding(encoding)
+        .with_tags(asked.tags());
     let roofs = asked.roofs.unwrap_or_default();
     cached_tile(&state, request_headers, key, roofs, TILE_CACHE_CONTROL).await
 }

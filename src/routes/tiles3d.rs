@@ -2,7 +2,7 @@
 //! `?bbox=`, `?tiling=`), the ECEF glb content its quadtree names and, for implicit tiling, the
 //! binary subtree; content goes through the same tile cache as XYZ tiles.
 
-use super::params::{EncodingParam, TileQuery, encoding_for, parse_bbox, whole_number};
+use super::params::{EncodingParam, TagsParam, TileQuery, encoding_for, parse_bbox, whole_number};
 use super::roofs::cached_tile;
 use super::schemas::{GlbBytes, SubtreeBytes};
 use crate::cache::TileKey;
@@ -40,6 +40,11 @@ pub struct TilesetQuery {
     /// (the world tileset is always explicit, in nested files).
     #[param(inline)]
     pub tiling: Option<TilingParam>,
+    /// `all` gives each building one more property, `osm_tags`: every OSM tag of the element
+    /// as a JSON object; `named` (the default) the named properties only (passed on to every
+    /// content tile's URI).
+    #[param(inline)]
+    pub tags: Option<TagsParam>,
 }
 
 /// How a tileset lists its tiles, as asked with `?tiling=`.
@@ -78,6 +83,9 @@ pub(super) fn content_query(query: &TilesetQuery) -> String {
         && Encoding::from(e) != CONTENT_ENCODING
     {
         parts.push(format!("encoding={}", Encoding::from(e)));
+    }
+    if query.tags == Some(TagsParam::All) {
+        parts.push("tags=all".to_owned());
     }
     parts.join("&")
 }
@@ -274,7 +282,9 @@ pub async fn content(
     cached_tile(
         &state,
         &request_headers,
-        TileKey::implicit(root, tile).with_encoding(encoding),
+        TileKey::implicit(root, tile)
+            .with_encoding(encoding)
+            .with_tags(query.tags()),
         query.roofs.unwrap_or_default(),
         "public, max-age=3600",
     )

@@ -170,6 +170,8 @@ pub async fn world_file(
     let encoding = encoding_for(query.encoding, &request_headers, CONTENT_ENCODING);
     let key = TileKey::world(tile).with_encoding(encoding);
     if tile.z > DATA_ZOOM {
+        let tags = query.tags.unwrap_or_default().into();
+        let key = key.with_tags(tags);
         return cached_tile(
             &state,
             &request_headers,

@@ -212,6 +212,65 @@ fn row_of(glb: &[u8], way: &str) -> serde_json::Map<String, serde_json::Value> {
 }
 
 #[tokio::test]
+async fn tags_all_carries_every_osm_tag_of_a_building_as_one_json_object() {
+    let db = tempfile::tempdir().unwrap();
+    let state = common::kirchfeld_state(&db).await;
+    common::world_ready(&state).await;
+    let app = common::app_of(state);
+    // Way 142104398's tags as OpenStreetMap has them (read with pyosmium).
+    let want = serde_json::json!({
+        "addr:city": "Karlsruhe", "addr:country": "DE", "addr:housenumber": "10",
+        "addr:postcode": "76149", "addr:street": "An der Vogelhardt", "addr:suburb": "Neureut",
+        "brand": "PLAZA Hotelgroup GmbH", "building": "hotel", "building:levels": "4",
+        "email": "karlsruhe2@plazahotels.de", "internet_access": "wlan",
+        "internet_access:fee": "no", "name": "PLAZA INN Karlsruhe Nord",
+        "old_name": "Hotel Newton Karlsruhe", "phone": "+49 721 78194800", "roof:levels": "0",
+        "roof:material": "grass", "roof:shape": "flat", "rooms": "83",
+        "source:geometry": "Maps4BW, LGL, www.lgl-bw.de", "stars": "3", "start_date": "1994",
+        "tourism": "hotel", "website": "https://plazahotels.de/hotel-karlsruhe-nord/",
+    });
+    let (lon, lat) = (8.39366, 49.04397);
+    let t16 = TileCoord::containing(16, lon, lat);
+    let t15 = TileCoord::containing(15, lon, lat);
+    for (plain, tagged) in [
+        (
+            format!("/tiles/16/{}/{}.glb", t16.x, t16.y),
+            format!("/tiles/16/{}/{}.glb?tags=all", t16.x, t16.y),
+        ),
+        (
+            format!("/3dtiles/world/15/{}/{}.glb", t15.x, t15.y),
+            format!("/3dtiles/world/15/{}/{}.glb?tags=all", t15.x, t15.y),
+        ),
+    ] {
+        let without = get(&app, &plain).await;
+        let with = get(&app, &tagged).await;
+        assert_eq!(with.status, StatusCode::OK, "{tagged}: {}", with.text());
+        assert_valid_glb(&with.body);
+        // Without the option the column is not there at all (it costs nothing).
+        assert!(
+            !row_of(&without.body, "142104398").contains_key("osm_tags"),
+            "{plain}"
+        );
+        let row = row_of(&with.body, "142104398");
+        let tags: serde_json::Value =
+            serde_json::from_str(row["osm_tags"].as_str().unwrap()).unwrap();
+        assert_eq!(tags, want, "{tagged}");
+        // Every building carries it, and the named properties are unchanged.
+        for r in common::decode::feature_rows(&with.body) {
+            assert!(r["osm_tags"].as_str().unwrap().starts_with('{'), "{tagged}");
+        }
+        assert_eq!(row["height"], "12");
+        assert_ne!(without.header("etag"), with.header("etag"), "{tagged}");
+    }
+    // The world tileset passes the option on to its content.
+    let tree = get(&app, "/3dtiles/world/12/2143/1405.json?tags=all").await;
+    assert!(tree.text().contains(".glb?tags=all"), "{}", tree.text());
+    let bad = get(&app, "/3dtiles/world/15/17148/11246.glb?tags=some").await;
+    assert_eq!(bad.status, StatusCode::BAD_REQUEST);
+    assert_eq!(bad.json()["error"], "invalid_query");
+}
+
+#[tokio::test]
 async fn a_building_carries_its_osm_identity_and_tags_in_every_kind_of_glb() {
     let db = tempfile::tempdir().unwrap();
     let app = kirchfeld_app(&db).await;

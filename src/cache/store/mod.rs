@@ -22,7 +22,7 @@ macro_rules! bind_key {
             .bind(x)
             .bind(y)
             .bind(key.encoding.as_str())
-            .bind(key.roofs.name())
+            .bind(key.content_name())
             .bind($data_version)
     }};
 }

@@ -45,7 +45,7 @@ fn lock_id(key: &TileKey, data_version: &str) -> i64 {
     let text = format!(
         "{scheme}/{region}/{z}/{x}/{y}/{}/{}/{data_version}",
         key.encoding.as_str(),
-        key.roofs.name()
+        key.content_name()
     );
     xxhash_rust::xxh3::xxh3_64(text.as_bytes()) as i64
 }

@@ -45,6 +45,16 @@ impl RoofOrigin {
     }
 }
 
+/// Which properties a building carries besides the named ones.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum TagProperties {
+    /// The named properties of [`BUILDING_CLASS`] only.
+    #[default]
+    Named,
+    /// Also every OSM tag of the element, as one JSON object (`osm_tags`).
+    All,
+}
+
 /// One generated building (or `building:part`) as a client sees it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BuildingFeature {
@@ -68,6 +78,8 @@ pub struct BuildingFeature {
     /// The centre of the footprint's bounding box, degrees (`[lon, lat]`): the point the
     /// buildings a box holds are decided by.
     pub centre: [f64; 2],
+    /// Every OSM tag of the element as a JSON object, when asked ([`TagProperties::All`]).
+    pub osm_tags: Option<String>,
 }
 
 impl BuildingFeature {
@@ -107,6 +119,21 @@ impl BuildingFeature {
                 let (lon, lat) = bounds_centre(record_bounds(record));
                 [lon, lat]
             },
+            osm_tags: None,
+        }
+    }
+
+    /// The same feature carrying every OSM tag of `tags` (the record's, as in the data: what
+    /// citymesh itself notes on a record, `citymesh:*`, is left out).
+    pub fn with_every_tag(self, tags: &Tags) -> Self {
+        let object: serde_json::Map<String, serde_json::Value> = tags
+            .iter()
+            .filter(|(k, _)| !k.starts_with("citymesh:"))
+            .map(|(k, v)| (k.clone(), serde_json::Value::String(v.clone())))
+            .collect();
+        Self {
+            osm_tags: Some(serde_json::Value::Object(object).to_string()),
+            ..self
         }
     }
 }
@@ -235,6 +262,11 @@ pub static BUILDING_CLASS: ClassDef = ClassDef {
             PropertyType::Float64,
             "Longitude of the footprint's centre, degrees (styles read it as cesium#longitude)",
         ),
+        property(
+            "osm_tags",
+            PropertyType::String,
+            "Every OSM tag of the element as a JSON object, when asked for (tags=all)",
+        ),
     ],
 };
 
@@ -283,6 +315,7 @@ pub fn property_table(features: &[BuildingFeature]) -> PropertyTable {
             floats(&|f| f.height as f32),
             Column::Float64(features.iter().map(|f| f.centre[1]).collect()),
             Column::Float64(features.iter().map(|f| f.centre[0]).collect()),
+            strings(&|f| f.osm_tags.clone().unwrap_or_default()),
         ],
     }
 }

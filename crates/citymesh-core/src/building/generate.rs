@@ -34,6 +34,8 @@ pub struct BuildingContext<'a> {
     pub heights: HeightBase,
     /// How hipped, gabled and pyramidal roofs are laid over their footprints.
     pub roof_method: RoofMethod,
+    /// Whether each building carries every OSM tag too.
+    pub tags: super::TagProperties,
 }
 
 /// Pieces of outline left over by parts smaller than this (m²) are slivers, not rooms.
@@ -179,9 +181,11 @@ pub fn generate_cluster_until(
         }
         if let Some(params) = first_params {
             stats.generated += 1;
-            stats
-                .features
-                .push(BuildingFeature::new(p.record, &p.tags, &params));
+            let feature = BuildingFeature::new(p.record, &p.tags, &params);
+            stats.features.push(match ctx.tags {
+                super::TagProperties::Named => feature,
+                super::TagProperties::All => feature.with_every_tag(&p.record.tags),
+            });
         }
     }
     if stop() {

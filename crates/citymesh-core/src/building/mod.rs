@@ -37,7 +37,7 @@ pub mod triangulate;
 pub mod walls;
 
 pub use cluster::clusters;
-pub use feature::{BuildingFeature, RoofOrigin};
+pub use feature::{BuildingFeature, RoofOrigin, TagProperties};
 pub use generate::{BuildingContext, generate_cluster, generate_cluster_until};
 pub use height_base::HeightBase;
 pub use roof_method::RoofMethod;

@@ -13,7 +13,7 @@ pub use roof_choice::{Chooser, RoofChoice};
 
 use crate::building::feature::property_table;
 use crate::building::{
-    BuildingContext, BuildingStats, HeightBase, RoofMethod, generate_cluster_until,
+    BuildingContext, BuildingStats, HeightBase, RoofMethod, TagProperties, generate_cluster_until,
 };
 use crate::geo::Region;
 use crate::geo::{GeoBbox, LocalFrame};
@@ -42,6 +42,8 @@ pub struct SceneRules {
     pub heights: HeightBase,
     /// How hipped, gabled and pyramidal roofs are laid over their footprints.
     pub roof_method: RoofMethod,
+    /// Whether each building carries every OSM tag too.
+    pub tags: TagProperties,
 }
 
 impl SceneRules {
@@ -52,6 +54,7 @@ impl SceneRules {
             ground: GroundDetail::Dem,
             heights: HeightBase::default(),
             roof_method: RoofMethod::default(),
+            tags: TagProperties::default(),
         }
     }
 }
@@ -155,6 +158,7 @@ impl Scene {
             clip: (rules.border == Border::Truncate).then_some(*bbox),
             heights: rules.heights,
             roof_method: rules.roof_method,
+            tags: rules.tags,
         };
         let runs = split_runs(clusters, workers);
         let (buildings, cluster_triangles, complete) = if runs.len() <= 1 {

@@ -7,7 +7,9 @@
 use super::level_of_detail::{LevelOfDetail, Simplified};
 use super::{Border, GroundDetail, RoofChoice, Scene, SceneRules};
 use crate::building::set::{BuildingSet, ClusterInfo, extent_with};
-use crate::building::{BuildingRules, BuildingStats, HeightBase, RoofMethod, RoofOrigin};
+use crate::building::{
+    BuildingRules, BuildingStats, HeightBase, RoofMethod, RoofOrigin, TagProperties,
+};
 use crate::geo::{BboxError, GeoBbox, ImplicitTile, LocalFrame, TileCoord};
 use crate::mesh::{EncodedGlb, Encoding, Placement};
 use crate::osm::BuildingRecord;
@@ -113,6 +115,7 @@ impl SceneArea {
             detail,
             heights: HeightBase::default(),
             roof_method: RoofMethod::default(),
+            tags: TagProperties::default(),
         })
     }
 }
@@ -142,6 +145,8 @@ pub struct SceneRequest<'a> {
     pub roof_method: RoofMethod,
     /// At a coarse level, the cells of the 16 x 16 ground grid to draw (`None`: all).
     pub ground_cells: Option<CellMask>,
+    /// Whether each building carries every OSM tag too.
+    pub tags: TagProperties,
 }
 
 /// A generated, encoded scene and what went into it.
@@ -202,6 +207,11 @@ impl<'a> SceneRequest<'a> {
     /// The same request encoded with `encoding`.
     pub fn with_encoding(self, encoding: Encoding) -> Self {
         Self { encoding, ..self }
+    }
+
+    /// The same request, its buildings carrying the properties `tags` says.
+    pub fn with_tags(self, tags: TagProperties) -> Self {
+        Self { tags, ..self }
     }
 
     /// The outline nodes (outer and inner rings) of the groups' records: what the work and
@@ -312,6 +322,7 @@ impl<'a> SceneRequest<'a> {
             ground,
             heights: self.heights,
             roof_method: self.roof_method,
+            tags: self.tags,
         };
         Scene::build(model, &self.bbox, &as_refs(&records), rules, stop, workers)
     }

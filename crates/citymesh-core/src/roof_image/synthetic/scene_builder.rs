@@ -97,6 +97,7 @@ impl SceneBuilder {
             heights: Default::default(),
             // The renders the classifier learnt from: kept as they were made.
             roof_method: crate::building::RoofMethod::Rectangle,
+            tags: Default::default(),
         };
         let mut part = Mesh::default();
         let mut stats = BuildingStats::default();
