@@ -63,13 +63,17 @@ pub async fn generate(
 }
 
 /// The source's buildings of an area, gathered under the request timeout (which may ask
-/// upstream): what a cached tile is generated from, gathered before its generation turn.
+/// upstream, except for the world tileset's tiles): what a cached tile is generated from, gathered before its generation turn.
 pub async fn gather(generator: &Generator, area: SceneArea) -> Result<AreaBuildings, AppError> {
     let bbox = area
         .bbox()
         .map_err(|e| PipelineError::InvalidArea(e.to_string()))?;
     within_timeout(generator, async {
-        Ok(generator.source.buildings(&bbox).await?)
+        // The world tileset covers what the source holds: its tiles never ask upstream.
+        Ok(match area {
+            SceneArea::World(_) => generator.source.held_area(&bbox).await?,
+            _ => generator.source.buildings(&bbox).await?,
+        })
     })
     .await
 }

@@ -108,6 +108,18 @@ pub trait BuildingSource: Send + Sync {
         bbox: &'a GeoBbox,
     ) -> BoxFuture<'a, Result<AreaBuildings, SourceError>>;
 
+    /// [`BuildingSource::buildings`] from what the source holds alone, through its caches:
+    /// never asks upstream (a data tile it does not hold has no buildings). The world tileset's
+    /// content is made with it: the tree covers what is held, so a tile at its edge never
+    /// waits on (or fails with) an upstream for the data tiles beside it. Sources that never
+    /// ask upstream answer as `buildings`.
+    fn held_area<'a>(
+        &'a self,
+        bbox: &'a GeoBbox,
+    ) -> BoxFuture<'a, Result<AreaBuildings, SourceError>> {
+        self.buildings(bbox)
+    }
+
     /// Announcements of changed areas, from now on.
     fn subscribe(&self) -> broadcast::Receiver<DataChanged>;
 

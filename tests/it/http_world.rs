@@ -8,6 +8,7 @@ use crate::common;
 
 use axum::http::StatusCode;
 use citymesh_core::geo::ecef_to_geodetic;
+use clap::Parser;
 use common::{assert_valid_glb, get};
 use serde_json::Value;
 use std::collections::BTreeMap;
@@ -338,4 +339,48 @@ async fn world_content_goes_gzipped_to_who_accepts_it_and_inflated_to_the_rest()
             gzipped.body.len()
         );
     }
+}
+
+/// A server over imported data that also fetches from an upstream: the world tileset covers
+/// what is stored, so its tiles at the edge of the import are made from the stored data tiles
+/// alone and never wait on (or fail with) the upstream for the data tiles beside them.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn world_tiles_at_the_edge_of_an_import_never_ask_upstream() {
+    let db = tempfile::tempdir().unwrap();
+    let store = db.path().join("c.sqlite");
+    let pbf = common::data_dir().join("osm/karlsruhe-kirchfeld.osm.pbf");
+    citymesh::commands::import::import(&[pbf], store.to_str().unwrap(), true)
+        .await
+        .unwrap();
+    // An upstream nobody answers at: asking it fails the request at once.
+    let dem = common::dem_dir();
+    let args = citymesh::cli::ServeArgs::parse_from([
+        "serve",
+        "--dem-dir",
+        dem.to_str().unwrap(),
+        "--cache-db",
+        store.to_str().unwrap(),
+        "--overpass-url",
+        "http://127.0.0.1:9/api/interpreter",
+        "--overpass-retries",
+        "0",
+    ]);
+    let state = citymesh::server::build_state(&args).await.unwrap();
+    let app = common::app_of(state.clone());
+    assert_eq!(common::world_ready(&state).await.data_tiles, 4);
+
+    let mut files = 0;
+    let mut listed = Vec::new();
+    walk(&app, "/3dtiles/tileset.json", &mut files, &mut listed).await;
+    let mut rows = 0;
+    for l in listed.iter().filter(|l| zoom_of(&l.uri) == 15) {
+        let c = get(&app, &l.uri).await;
+        assert_eq!(c.status, StatusCode::OK, "{}: {}", l.uri, c.text());
+        rows += common::decode::feature_rows(&c.body).len();
+    }
+    // Every building of the import, as from its PBF file.
+    assert_eq!(rows, 3019);
+    // The upstream is live for what is not stored: a tile beside the import asks it and fails.
+    let beside = get(&app, "/tiles/16/34290/22490.glb").await;
+    assert_eq!(beside.status, StatusCode::BAD_GATEWAY, "{}", beside.text());
 }

@@ -118,7 +118,10 @@ impl DataTileSource {
         })
     }
 
-    async fn area(&self, bbox: &GeoBbox) -> Result<AreaBuildings, SourceError> {
+    /// The buildings of `bbox`'s data tiles; with `fetch`, those not held are fetched from
+    /// upstream, else they count as empty (and that is not remembered: a later request may
+    /// fetch them).
+    async fn area(&self, bbox: &GeoBbox, fetch: bool) -> Result<AreaBuildings, SourceError> {
         let keys = data_tiles_for(bbox);
         if keys.len() > MAX_DATA_TILES {
             return Err(SourceError::AreaTooLarge {
@@ -131,8 +134,14 @@ impl DataTileSource {
         // another failed), then the first failure is reported, upstream failures before the
         // request's call budget.
         let budget = AtomicUsize::new(self.calls_per_request);
-        let results =
-            futures_util::future::join_all(keys.iter().map(|t| self.data_tile(*t, &budget))).await;
+        let results = futures_util::future::join_all(keys.iter().map(|t| async {
+            if fetch {
+                self.data_tile(*t, &budget).await
+            } else {
+                self.held_data_tile(*t, &budget).await
+            }
+        }))
+        .await;
         let mut parsed = Vec::with_capacity(results.len());
         let mut failure: Option<SourceError> = None;
         for result in results {
@@ -157,10 +166,9 @@ impl DataTileSource {
             .filter(|(_, p)| !p.present)
             .map(|(t, _)| format!("{}/{}/{}", t.z, t.x, t.y))
             .collect();
-        let set = self
-            .sets
-            .try_get_with(keys.clone(), async {
-                let parsed = parsed.clone();
+        let assemble = || {
+            let parsed = parsed.clone();
+            async move {
                 tokio::task::spawn_blocking(move || {
                     let mut seen = HashSet::new();
                     let records: Vec<Arc<BuildingRecord>> = parsed
@@ -173,9 +181,18 @@ impl DataTileSource {
                 })
                 .await
                 .map_err(SourceError::from)
-            })
-            .await
-            .map_err(|e: Arc<SourceError>| (*e).clone())?;
+            }
+        };
+        // A set with data tiles counted empty only because they were not fetched is not kept
+        // under the keys a fetching request would find it by.
+        let set = if !fetch && !missing.is_empty() && self.upstream.is_some() {
+            assemble().await?
+        } else {
+            self.sets
+                .try_get_with(keys.clone(), assemble())
+                .await
+                .map_err(|e: Arc<SourceError>| (*e).clone())?
+        };
         if self.version.load(Ordering::SeqCst) != version {
             self.sets.invalidate(&keys).await;
         }
@@ -208,6 +225,25 @@ impl DataTileSource {
             load_skips: skips_near(&skipped, bbox),
             repaired: Arc::new(repaired),
         })
+    }
+
+    /// A data tile as [`DataTileSource::data_tile`] reads it when it is held (stored or
+    /// parsed already); one not held has no buildings here, and nothing is remembered of it.
+    async fn held_data_tile(
+        &self,
+        t: TileCoord,
+        budget: &AtomicUsize,
+    ) -> Result<Arc<ParsedDataTile>, SourceError> {
+        if self.upstream.is_none() || self.parsed.contains_key(&t) || self.store.holds(&t).await? {
+            return self.data_tile(t, budget).await;
+        }
+        Ok(Arc::new(ParsedDataTile {
+            records: Vec::new(),
+            skipped: Vec::new(),
+            repaired: Vec::new(),
+            present: false,
+            fetched_at: None,
+        }))
     }
 
     async fn data_tile(
@@ -363,7 +399,14 @@ impl BuildingSource for DataTileSource {
         &'a self,
         bbox: &'a GeoBbox,
     ) -> BoxFuture<'a, Result<AreaBuildings, SourceError>> {
-        Box::pin(self.area(bbox))
+        Box::pin(self.area(bbox, true))
+    }
+
+    fn held_area<'a>(
+        &'a self,
+        bbox: &'a GeoBbox,
+    ) -> BoxFuture<'a, Result<AreaBuildings, SourceError>> {
+        Box::pin(self.area(bbox, false))
     }
 
     fn subscribe(&self) -> broadcast::Receiver<DataChanged> {

@@ -145,6 +145,11 @@ impl OsmTileStore {
         Ok(stored)
     }
 
+    /// Whether a data tile is stored (its body not read, its use not noted).
+    pub async fn holds(&self, t: &TileCoord) -> Result<bool, sqlx::Error> {
+        statements::holds(&self.db, t).await
+    }
+
     /// Stores a data tile; answers whether its content changed (new, or a different body).
     pub async fn put(
         &self,

@@ -175,6 +175,20 @@ pub(super) async fn put_in(
     })
 }
 
+/// Whether a data tile is stored (its body is not read).
+pub(super) async fn holds(db: &Database, t: &TileCoord) -> Result<bool, sqlx::Error> {
+    let sql = "SELECT 1 FROM osm_data_tiles WHERE z = $1 AND x = $2 AND y = $3";
+    on_pool!(db, pool => {
+        let row = sqlx::query(sql)
+            .bind(i64::from(t.z))
+            .bind(i64::from(t.x))
+            .bind(i64::from(t.y))
+            .fetch_optional(pool)
+            .await?;
+        Ok(row.is_some())
+    })
+}
+
 pub(super) async fn count(db: &Database) -> Result<i64, sqlx::Error> {
     let sql = "SELECT COUNT(*) FROM osm_data_tiles";
     on_pool!(db, pool => sqlx::query(sql).fetch_one(pool).await.map(|r| r.get(0)))
