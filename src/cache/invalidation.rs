@@ -15,7 +15,11 @@ pub fn subscribe(source: &dyn BuildingSource, tiles: Arc<TileCache>, priors: Arc
     tokio::spawn(async move {
         loop {
             match changes.recv().await {
-                Ok(DataChanged { area }) => {
+                // Nothing generated used data fetched for the first time.
+                Ok(DataChanged {
+                    first_fetch: true, ..
+                }) => {}
+                Ok(DataChanged { area, .. }) => {
                     priors.invalidate_area(&area);
                     match tiles.invalidate_area(&area).await {
                         Ok(n) => {

@@ -42,6 +42,8 @@ pub struct SummaryProgress {
 /// The summaries of every tile of the world tree that holds buildings.
 pub struct Summaries {
     tiles: RwLock<HashMap<TileCoord, Arc<TileSummary>>>,
+    /// The area the tree covers beyond the data held (`--world-area`: its leaves fetch).
+    area: Option<GeoBbox>,
     done: AtomicUsize,
     kept: AtomicUsize,
     data_tiles: AtomicUsize,
@@ -50,9 +52,12 @@ pub struct Summaries {
 }
 
 impl Summaries {
-    pub fn new() -> Arc<Self> {
+    /// Summaries of a tree over the data held and `area` (tiles there without data are
+    /// unfetched: `WorldTile::unfetched`).
+    pub fn new(area: Option<GeoBbox>) -> Arc<Self> {
         Arc::new(Self {
             tiles: RwLock::default(),
+            area,
             done: AtomicUsize::new(0),
             kept: AtomicUsize::new(0),
             data_tiles: AtomicUsize::new(0),
@@ -98,8 +103,14 @@ impl Summaries {
         self.read().get(t).cloned()
     }
 
+    /// The area covered beyond the data held (`--world-area`).
+    pub fn area(&self) -> Option<&GeoBbox> {
+        self.area.as_ref()
+    }
+
     /// The tile as the world tileset lists it, if it exists: at or above the data tiles when
-    /// its summary exists, below them when its data tile's does.
+    /// its summary exists, below them when its data tile's does; in the covered area
+    /// (`--world-area`) every tile exists, unfetched where no data is held under it.
     pub fn world_tile(&self, t: TileCoord) -> Option<WorldTile> {
         let own = if t.z > DATA_ZOOM {
             let shift = t.z - DATA_ZOOM;
@@ -111,7 +122,14 @@ impl Summaries {
         } else {
             t
         };
-        self.get(&own).map(|s| WorldTile::of(t, &s))
+        let held = self.get(&own).map(|s| WorldTile::of(t, &s));
+        let covered = self.area.is_some_and(|a| t.bounds().overlaps(&a));
+        match held {
+            // A data tile held is fetched whole: no tile below it is unfetched.
+            Some(tile) if covered && t.z < DATA_ZOOM => Some(tile.covering_unfetched(t)),
+            Some(tile) => Some(tile),
+            None => covered.then(|| WorldTile::unfetched(t)),
+        }
     }
 
     /// Makes every summary: those of the source's data tiles (with `reuse`, read from `store`
@@ -328,11 +346,16 @@ pub fn keep_summaries(
             }
             loop {
                 match changes.recv().await {
-                    Ok(crate::source::DataChanged { area }) => {
+                    Ok(crate::source::DataChanged { area, first_fetch }) => {
                         if let Err(e) = summaries.remake_over(&generator, &area, &tiles).await {
                             tracing::error!(%area, "cannot remake summaries: {e}");
                         }
-                        if let Err(e) = tiles.invalidate_area(&area).await {
+                        // Data fetched for the first time changes only the world content over
+                        // a covered area (its blocks were made without it); elsewhere nothing
+                        // was made from it.
+                        let stale =
+                            !first_fetch || summaries.area().is_some_and(|a| a.intersects(&area));
+                        if stale && let Err(e) = tiles.invalidate_area(&area).await {
                             tracing::error!(%area, "cannot invalidate tiles: {e}");
                         }
                     }

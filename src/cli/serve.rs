@@ -66,6 +66,15 @@ pub struct ServeArgs {
     #[arg(long, env = "CITYMESH_OFFLINE")]
     pub offline: bool,
 
+    /// The area the world tileset (`/3dtiles/tileset.json` without a box) covers on a server
+    /// that fetches from Overpass, beyond the data it holds: `minLon,minLat,maxLon,maxLat`, or
+    /// `world` for the whole Web Mercator square. Its leaves fetch their data tiles when a
+    /// client first asks for them; coarse tiles draw blocks where data is held. Without it the
+    /// tileset covers the data held (imported or fetched so far). Not with --offline or --osm
+    /// (nothing to fetch).
+    #[arg(long, env = "CITYMESH_WORLD_AREA", value_parser = world_area_arg)]
+    pub world_area: Option<citymesh_core::geo::GeoBbox>,
+
     /// Load the roof-shape classifier at start-up (needs ONNX Runtime; without it citymesh says
     /// how to install it and serves everything else). Off: nothing is loaded.
     #[arg(long, env = "CITYMESH_ROOF_CLASSIFIER")]
@@ -260,4 +269,14 @@ pub struct ServeArgs {
     /// Highest zoom level /tiles serves.
     #[arg(long, env = "CITYMESH_MAX_ZOOM", default_value_t = 20)]
     pub max_zoom: u8,
+}
+
+/// The value of `--world-area`: `world`, or a box.
+fn world_area_arg(text: &str) -> Result<citymesh_core::geo::GeoBbox, String> {
+    if text.trim().eq_ignore_ascii_case("world") {
+        return Ok(citymesh_core::geo::GeoBbox::world());
+    }
+    text.parse::<citymesh_core::geo::GeoBbox>().map_err(|e| {
+        format!("{e}; give minLon,minLat,maxLon,maxLat (e.g. 8.3,48.9,8.6,49.1) or `world`")
+    })
 }

@@ -11,6 +11,7 @@ use crate::source::BuildingSource;
 use crate::state::{AppState, Limits};
 use axum::extract::FromRef;
 use citymesh_core::building::{HeightBase, RoofMethod};
+use citymesh_core::geo::GeoBbox;
 use std::sync::Arc;
 use tokio::sync::Semaphore;
 use tokio_util::sync::CancellationToken;
@@ -37,6 +38,9 @@ pub struct GeneratorParts {
     pub priors: Arc<RoofPriors>,
     /// Cancelled when the server shuts down: long measurements stop.
     pub stopping: CancellationToken,
+    /// The area the world tileset covers beyond the data held (`--world-area`): its leaves
+    /// there may fetch.
+    pub world_area: Option<GeoBbox>,
 }
 
 impl Generator {

@@ -69,9 +69,11 @@ pub async fn gather(generator: &Generator, area: SceneArea) -> Result<AreaBuildi
         .bbox()
         .map_err(|e| PipelineError::InvalidArea(e.to_string()))?;
     within_timeout(generator, async {
-        // The world tileset covers what the source holds: its tiles never ask upstream.
+        // The world tileset covers what the source holds: its tiles never ask upstream, but
+        // for the leaves in the area it covers beyond that (`--world-area`).
+        let fetches = generator.world_area.is_some_and(|a| a.overlaps(&bbox));
         Ok(match area {
-            SceneArea::World(_) => generator.source.held_area(&bbox).await?,
+            SceneArea::World(_) if !fetches => generator.source.held_area(&bbox).await?,
             _ => generator.source.buildings(&bbox).await?,
         })
     })

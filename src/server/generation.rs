@@ -88,6 +88,11 @@ pub async fn open_generator(
         !overpass_urls.is_empty(),
         "--overpass-url needs at least one endpoint"
     );
+    anyhow::ensure!(
+        args.world_area.is_none() || (!args.offline && args.osm.is_empty()),
+        "--world-area is for a server that fetches from Overpass: with --offline or --osm there \
+         is nothing to fetch, and the world tileset covers the data held without it"
+    );
     let database = args.database.open().await?;
     // Cancelled on shutdown: long work (adaptations, tree measurements) stops.
     let stopping = tokio_util::sync::CancellationToken::new();
@@ -101,6 +106,7 @@ pub async fn open_generator(
     let demo = args.osm.is_empty()
         && args.overpass_url.is_none()
         && !args.offline
+        && args.world_area.is_none()
         && dem.file_count() == 0
         && store.count().await? == 0;
     let files = if demo {
@@ -247,6 +253,7 @@ pub async fn open_generator(
         roofs,
         priors,
         stopping,
+        world_area: args.world_area,
     });
     Ok(OpenedGenerator {
         generator,

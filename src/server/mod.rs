@@ -53,7 +53,7 @@ pub async fn build_state_with_clock(args: &ServeArgs, clock: Clock) -> anyhow::R
         tiles.clone(),
         generator.priors.clone(),
     );
-    let summaries = crate::cache::Summaries::new();
+    let summaries = crate::cache::Summaries::new(generator.world_area);
     crate::cache::keep_summaries(generator.clone(), summaries.clone(), tiles.clone());
     if let db::Database::Postgres(pool) = &database {
         let caches = replica_invalidation::ReplicaCaches {

@@ -71,6 +71,10 @@ pub fn skips_near(skips: &[Skipped], bbox: &GeoBbox) -> Vec<Skipped> {
 pub struct DataChanged {
     /// The area whose served content may have used the changed data (margin included).
     pub area: GeoBbox,
+    /// The data was fetched for the first time: nothing was generated from it, and every
+    /// request over it waited for it, so only what is made from held data alone (the world
+    /// tileset's summaries, and its content in a `--world-area`) changes.
+    pub first_fetch: bool,
 }
 
 /// The area whose tagged buildings teach the roof prior of a building (docs/method.md section

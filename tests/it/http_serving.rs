@@ -31,7 +31,7 @@ enum Mode {
     FewerRoofTags,
 }
 
-struct Stub {
+pub(crate) struct Stub {
     mode: Mutex<Mode>,
     requests: AtomicUsize,
     ways: Vec<Value>,
@@ -40,7 +40,7 @@ struct Stub {
 }
 
 impl Stub {
-    fn new() -> Arc<Self> {
+    pub(crate) fn new() -> Arc<Self> {
         let doc: Value =
             serde_json::from_slice(&osm_bytes("karlsruhe-kirchfeld.overpass.json")).unwrap();
         let mut ways = Vec::new();
@@ -69,7 +69,7 @@ impl Stub {
         *self.mode.lock().unwrap() = mode;
     }
 
-    fn count(&self) -> usize {
+    pub(crate) fn count(&self) -> usize {
         self.requests.load(Ordering::SeqCst)
     }
 
@@ -215,7 +215,7 @@ async fn interpreter(
 }
 
 /// Starts the stub on a free port; returns its interpreter URL.
-async fn start_stub(stub: Arc<Stub>) -> String {
+pub(crate) async fn start_stub(stub: Arc<Stub>) -> String {
     let app = axum::Router::new()
         .route("/api/interpreter", axum::routing::post(interpreter))
         .with_state(stub);

@@ -102,6 +102,27 @@ async fn walk(app: &axum::Router, path: &str, files: &mut usize, out: &mut Vec<L
     }
 }
 
+/// Every vertex of the content `glb` lies inside its tile's region.
+fn assert_inside(glb: &[u8], l: &Listed) {
+    let decoded = common::decode::decode_meshopt(glb);
+    assert_valid_glb(&decoded);
+    let r = &l.region;
+    for t in common::decode::triangles(&decoded) {
+        for q in t.corners {
+            let (lon, lat, h) = ecef_to_geodetic([q[0], -q[2], q[1]]);
+            let (lon, lat) = (lon.to_radians(), lat.to_radians());
+            assert!(
+                (r[0]..=r[2]).contains(&lon)
+                    && (r[1]..=r[3]).contains(&lat)
+                    && (r[4]..=r[5]).contains(&h),
+                "a {} vertex of {} at {lon}, {lat}, {h} lies outside {r:?}",
+                t.material,
+                l.uri
+            );
+        }
+    }
+}
+
 /// The zoom of a content path `/3dtiles/world/{z}/{x}/{y}.glb`.
 fn zoom_of(uri: &str) -> u8 {
     uri.split('/').rev().nth(2).unwrap().parse().unwrap()
@@ -142,23 +163,7 @@ async fn the_world_tileset_holds_every_building_once_per_level_inside_its_region
         let c = get(&app, &l.uri).await;
         assert_eq!(c.status, StatusCode::OK, "{}", l.uri);
         assert_valid_glb(&c.body);
-        let decoded = common::decode::decode_meshopt(&c.body);
-        assert_valid_glb(&decoded);
-        let r = &l.region;
-        for t in common::decode::triangles(&decoded) {
-            for q in t.corners {
-                let (lon, lat, h) = ecef_to_geodetic([q[0], -q[2], q[1]]);
-                let (lon, lat) = (lon.to_radians(), lat.to_radians());
-                assert!(
-                    (r[0]..=r[2]).contains(&lon)
-                        && (r[1]..=r[3]).contains(&lat)
-                        && (r[4]..=r[5]).contains(&h),
-                    "a {} vertex of {} at {lon}, {lat}, {h} lies outside {r:?}",
-                    t.material,
-                    l.uri
-                );
-            }
-        }
+        assert_inside(&c.body, l);
         let z = zoom_of(&l.uri);
         let rows = common::decode::feature_rows(&c.body);
         *rows_at.entry(z).or_default() += rows.len();
@@ -383,4 +388,133 @@ async fn world_tiles_at_the_edge_of_an_import_never_ask_upstream() {
     // The upstream is live for what is not stored: a tile beside the import asks it and fails.
     let beside = get(&app, "/tiles/16/34290/22490.glb").await;
     assert_eq!(beside.status, StatusCode::BAD_GATEWAY, "{}", beside.text());
+}
+
+/// A server that fetches from Overpass, told to cover an area it holds nothing of yet
+/// (`--world-area`): the tree covers the area at once, its leaves fetch their data tiles when a
+/// client asks for them (the tileset files never do), and once fetched the area draws blocks
+/// above the leaves like imported data.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_world_area_is_covered_before_its_data_is_fetched_and_its_leaves_fetch_it() {
+    let stub = crate::http_serving::Stub::new();
+    let url = crate::http_serving::start_stub(stub.clone()).await;
+    let db = tempfile::tempdir().unwrap();
+    let store = db.path().join("c.sqlite");
+    let dem = common::dem_dir();
+    // Inside data tile 14/8574/5623 (Kirchfeld's north-west quarter), away from its borders.
+    let area = "8.3950,49.0390,8.4140,49.0510";
+    let serve = |extra: &[&str]| {
+        let mut args = vec![
+            "serve",
+            "--dem-dir",
+            dem.to_str().unwrap(),
+            "--cache-db",
+            store.to_str().unwrap(),
+            "--world-area",
+            area,
+        ];
+        args.extend_from_slice(extra);
+        citymesh::cli::ServeArgs::parse_from(args)
+    };
+    // Nothing to fetch from: refused with a reason.
+    let refused = citymesh::server::build_state(&serve(&["--offline"])).await;
+    let message = refused
+        .err()
+        .expect("--world-area with --offline")
+        .to_string();
+    assert!(message.contains("--world-area"), "{message}");
+
+    let state =
+        citymesh::server::build_state(&serve(&["--overpass-url", &url, "--overpass-retries", "0"]))
+            .await
+            .unwrap();
+    let app = common::app_of(state.clone());
+    assert_eq!(common::world_ready(&state).await.data_tiles, 0);
+
+    let mut files = 0;
+    let mut listed = Vec::new();
+    walk(&app, "/3dtiles/tileset.json", &mut files, &mut listed).await;
+    assert_eq!(files, 5, "tileset files at zooms 0, 3, 6, 9 and 12");
+    // Nothing held: content only at the leaves, the four of the one data tile the area lies in.
+    let mut uris: Vec<String> = listed.iter().map(|l| l.uri.clone()).collect();
+    uris.sort_unstable();
+    assert_eq!(
+        uris,
+        [
+            "/3dtiles/world/15/17148/11246.glb",
+            "/3dtiles/world/15/17148/11247.glb",
+            "/3dtiles/world/15/17149/11246.glb",
+            "/3dtiles/world/15/17149/11247.glb",
+        ]
+    );
+    assert_eq!(stub.count(), 0, "a tileset file never fetches");
+    // Outside the area there is no tree.
+    let outside = get(&app, "/3dtiles/world/15/17150/11247.glb").await;
+    assert_eq!(outside.status, StatusCode::NOT_FOUND, "{}", outside.text());
+
+    // A leaf fetches its data tile, and its buildings lie inside the region listed before.
+    let mut rows = 0;
+    for l in &listed {
+        let c = get(&app, &l.uri).await;
+        assert_eq!(c.status, StatusCode::OK, "{}: {}", l.uri, c.text());
+        assert_inside(&c.body, l);
+        rows += common::decode::feature_rows(&c.body).len();
+    }
+    let fetched = stub.count();
+    println!("{rows} buildings in the 4 leaves; {fetched} data tiles fetched");
+    // Each leaf reads the data tiles within its margin: its own and the three beside its
+    // corner, so the four corners of one data tile read the 3 x 3 around it.
+    assert_eq!(fetched, 9);
+    // The same buildings as a server over the Kirchfeld file draws in the same leaves.
+    let files_db = tempfile::tempdir().unwrap();
+    let file_state = common::kirchfeld_state(&files_db).await;
+    common::world_ready(&file_state).await;
+    let from_file = common::app_of(file_state);
+    let mut rows_from_file = 0;
+    for l in &listed {
+        let c = get(&from_file, &l.uri).await;
+        assert_eq!(c.status, StatusCode::OK, "{}", l.uri);
+        rows_from_file += common::decode::feature_rows(&c.body).len();
+    }
+    assert_eq!(rows, rows_from_file);
+
+    // The data tile fetched is summarised: the tree draws blocks above its leaves, whose
+    // buildings are the same, now read from the store.
+    let data_tile = citymesh_core::geo::TileCoord {
+        z: 14,
+        x: 8574,
+        y: 5623,
+    };
+    tokio::time::timeout(std::time::Duration::from_secs(60), async {
+        while state.summaries.get(&data_tile).is_none() {
+            tokio::time::sleep(std::time::Duration::from_millis(20)).await;
+        }
+    })
+    .await
+    .expect("the fetched data tile was never summarised");
+    let mut again = Vec::new();
+    files = 0;
+    walk(&app, "/3dtiles/tileset.json", &mut files, &mut again).await;
+    let mut at: BTreeMap<u8, usize> = BTreeMap::new();
+    for l in &again {
+        *at.entry(zoom_of(&l.uri)).or_default() += 1;
+    }
+    assert_eq!(
+        at.keys().copied().min(),
+        Some(9),
+        "blocks from zoom 9: {at:?}"
+    );
+    let mut rows_again = 0;
+    for l in again.iter().filter(|l| uris.contains(&l.uri)) {
+        let c = get(&app, &l.uri).await;
+        assert_eq!(c.status, StatusCode::OK, "{}", l.uri);
+        assert_inside(&c.body, l);
+        rows_again += common::decode::feature_rows(&c.body).len();
+    }
+    assert_eq!(rows_again, rows);
+    assert_eq!(
+        stub.count(),
+        fetched,
+        "read from the store, not fetched again"
+    );
 }

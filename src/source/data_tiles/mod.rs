@@ -289,6 +289,11 @@ impl DataTileSource {
                     .inc();
                 let body = fetched?;
                 self.store.put(&t, &body, DataOrigin::Overpass).await?;
+                // No subscriber (yet) is not an error.
+                let _ = self.changes.send(DataChanged {
+                    area: affected_area(&t),
+                    first_fetch: true,
+                });
                 parse(body.into(), Some(self.store.clock().now_secs())).await
             })
             .await
@@ -352,6 +357,7 @@ impl DataTileSource {
                         // No subscriber (yet) is not an error.
                         let _ = changes.send(DataChanged {
                             area: affected_area(&t),
+                            first_fetch: false,
                         });
                     }
                     Err(e) => tracing::error!("cannot store refreshed OSM data: {e}"),

@@ -143,6 +143,19 @@ impl GeoBbox {
             && self.max_lat >= other.min_lat
     }
 
+    /// Whether the two boxes share some area (not only a border).
+    pub fn overlaps(&self, other: &GeoBbox) -> bool {
+        self.min_lon < other.max_lon
+            && self.max_lon > other.min_lon
+            && self.min_lat < other.max_lat
+            && self.max_lat > other.min_lat
+    }
+
+    /// The whole Web Mercator square: every longitude, latitudes to ±85.05°, as tile 0/0/0.
+    pub fn world() -> Self {
+        Self::from_ordered(-180.0, -MAX_MERCATOR_LAT, 180.0, MAX_MERCATOR_LAT)
+    }
+
     /// The box grown by `margin` degrees on every side, clamped to the valid range.
     ///
     /// ```

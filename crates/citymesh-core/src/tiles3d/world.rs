@@ -15,10 +15,16 @@
 //! what its content leaves out: a block cell's diagonal (or the coarse ground's error, or half
 //! the largest roof rise flattened, whichever is larger) for blocks, the tile's width for tiles without
 //! content (so a client always goes on into them), 0 at the leaves.
+//!
+//! A server that fetches from Overpass may also cover an area it holds no data of yet
+//! (`--world-area`): a tile there without a summary is *unfetched* ([`WorldTile::unfetched`]):
+//! no content above the leaves, the errors of blocks (so a client goes down to the leaves only
+//! where it would leave blocks), and a region that holds whatever its leaves fetch.
 
-use super::summary::{BLOCK_ZOOM, DATA_ZOOM, LEAF_ZOOM, TileSummary};
+use super::summary::{BLOCK_CELLS, BLOCK_ZOOM, DATA_ZOOM, LEAF_ZOOM, TileSummary};
 use crate::building::feature::BUILDING_CLASS;
 use crate::geo::{LocalFrame, Region, TileCoord};
+use crate::osm::MAX_BUILDING_EXTENT_M;
 use serde_json::{Value, json};
 
 /// Levels a tileset file lists with content before it refers to the next files.
@@ -45,6 +51,14 @@ pub struct WorldTile {
     /// Whether the tile has a content GLB.
     pub content: bool,
 }
+
+/// The lowest ground an unfetched tile's region reaches down to: below the lowest land (the
+/// shore of the Dead Sea, about 430 m below sea level).
+pub const UNFETCHED_FLOOR_M: f64 = -500.0;
+
+/// The highest top an unfetched tile's region reaches up to: above the highest summit
+/// (8,849 m) with the tallest building (828 m) on it.
+pub const UNFETCHED_TOP_M: f64 = 9_700.0;
 
 /// A tile's width in metres at its centre.
 fn width_m(tile: &TileCoord) -> f64 {
@@ -77,6 +91,49 @@ impl WorldTile {
             region: summary.region,
             geometric_error,
             content: tile.z >= BLOCK_ZOOM,
+        }
+    }
+}
+
+impl WorldTile {
+    /// A tile of the covered area that holds no fetched data (yet): its square grown by the
+    /// largest building's extent (a leaf draws the groups whose representative point lies in
+    /// it, whole), from the lowest ground to the highest top; content only at the leaves, which
+    /// fetch their data tiles; the geometric error of blocks at zooms that draw them (a cell's
+    /// diagonal), the tile's width above.
+    pub fn unfetched(tile: TileCoord) -> Self {
+        let b = tile.bounds();
+        let square = Region::of_bbox(&b, UNFETCHED_FLOOR_M, UNFETCHED_TOP_M);
+        let grown = square.grown(MAX_BUILDING_EXTENT_M);
+        let region = Region {
+            west: grown.west.max(-180.0),
+            south: grown.south.max(-90.0),
+            east: grown.east.min(180.0),
+            north: grown.north.min(90.0),
+            ..square
+        };
+        let geometric_error = if tile.z > DATA_ZOOM {
+            0.0
+        } else if tile.z >= BLOCK_ZOOM {
+            width_m(&tile) / f64::from(BLOCK_CELLS) * std::f64::consts::SQRT_2
+        } else {
+            width_m(&tile)
+        };
+        Self {
+            region,
+            geometric_error,
+            content: tile.z > DATA_ZOOM,
+        }
+    }
+
+    /// This tile, over which an area is covered that may hold unfetched tiles below it: its
+    /// region holds theirs too, and its error is at least theirs.
+    pub fn covering_unfetched(self, tile: TileCoord) -> Self {
+        let unfetched = Self::unfetched(tile);
+        Self {
+            region: self.region.union(&unfetched.region),
+            geometric_error: self.geometric_error.max(unfetched.geometric_error),
+            content: self.content,
         }
     }
 }
