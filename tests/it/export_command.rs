@@ -410,3 +410,60 @@ fn an_export_to_an_s3_store_equals_the_directory_export_and_resumes() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("--out s3://missing/x"), "{err}");
 }
+
+/// Karlsruhe-Kirchfeld's buildings.
+const KIRCHFELD: &str = "8.3877,49.0390,8.4039,49.0640";
+
+/// An export as a client reads it from disk: every tile the tileset lists has its content file,
+/// and every vertex of every content tile, decoded, lies inside that tile's bounding region.
+#[test]
+fn every_vertex_of_a_kirchfeld_export_lies_inside_its_tiles_region() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = export(dir.path(), KIRCHFELD, "karlsruhe-kirchfeld.osm.pbf", &[])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let files = tree(dir.path());
+    let tileset: serde_json::Value = serde_json::from_slice(&files["tileset.json"]).unwrap();
+    let mut stack = vec![&tileset["root"]];
+    let (mut tiles, mut vertices, mut rows) = (0, 0, 0);
+    while let Some(tile) = stack.pop() {
+        stack.extend(tile["children"].as_array().into_iter().flatten());
+        let Some(uri) = tile["content"]["uri"].as_str() else {
+            continue;
+        };
+        let r: Vec<f64> = tile["boundingVolume"]["region"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect();
+        let glb = files
+            .get(uri)
+            .unwrap_or_else(|| panic!("{uri} is listed but not exported"));
+        tiles += 1;
+        rows += common::decode::feature_rows(glb).len();
+        for t in common::decode::triangles(glb) {
+            for q in t.corners {
+                let (lon, lat, h) = citymesh_core::geo::ecef_to_geodetic([q[0], -q[2], q[1]]);
+                let (lon, lat) = (lon.to_radians(), lat.to_radians());
+                assert!(
+                    (r[0]..=r[2]).contains(&lon)
+                        && (r[1]..=r[3]).contains(&lat)
+                        && (r[4]..=r[5]).contains(&h),
+                    "a {} vertex of {uri} at {lon}, {lat}, {h} lies outside {r:?}",
+                    t.material
+                );
+                vertices += 1;
+            }
+        }
+    }
+    println!("{tiles} content tiles, {vertices} vertices, {rows} building rows");
+    // Every file but the tileset is a listed tile's content.
+    assert_eq!(tiles, files.len() - 1);
+    assert!(vertices > 0 && rows > 0);
+}
