@@ -123,12 +123,12 @@ impl Summaries {
             t
         };
         let held = self.get(&own).map(|s| WorldTile::of(t, &s));
-        let covered = self.area.is_some_and(|a| t.bounds().overlaps(&a));
-        match held {
+        let covered = self.area.filter(|a| t.bounds().overlaps(a));
+        match (held, covered) {
             // A data tile held is fetched whole: no tile below it is unfetched.
-            Some(tile) if covered && t.z < DATA_ZOOM => Some(tile.covering_unfetched(t)),
-            Some(tile) => Some(tile),
-            None => covered.then(|| WorldTile::unfetched(t)),
+            (Some(tile), Some(area)) if t.z < DATA_ZOOM => Some(tile.covering_unfetched(t, &area)),
+            (Some(tile), _) => Some(tile),
+            (None, area) => area.map(|a| WorldTile::unfetched(t, &a)),
         }
     }
 

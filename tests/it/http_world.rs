@@ -435,6 +435,23 @@ async fn a_world_area_is_covered_before_its_data_is_fetched_and_its_leaves_fetch
     let mut listed = Vec::new();
     walk(&app, "/3dtiles/tileset.json", &mut files, &mut listed).await;
     assert_eq!(files, 5, "tileset files at zooms 0, 3, 6, 9 and 12");
+    // The root is the area grown by the largest building's extent (2 km), not the Earth.
+    let root = region_of(&get(&app, "/3dtiles/tileset.json").await.json()["root"]);
+    let grown_deg = |metres: f64, cos: f64| (metres / 110_500.0 / cos).to_radians();
+    let (lat_m, lon_m) = (
+        grown_deg(2_000.0, 1.0),
+        grown_deg(2_000.0, 49.051_f64.to_radians().cos()),
+    );
+    let want = [
+        8.3950_f64.to_radians() - lon_m,
+        49.0390_f64.to_radians() - lat_m,
+        8.4140_f64.to_radians() + lon_m,
+        49.0510_f64.to_radians() + lat_m,
+    ];
+    for (got, want) in root.iter().zip(want) {
+        assert!((got - want).abs() < 1e-7, "root {root:?}, want {want:?}");
+    }
+    assert_eq!((root[4], root[5]), (-500.0, 9_700.0));
     // Nothing held: content only at the leaves, the four of the one data tile the area lies in.
     let mut uris: Vec<String> = listed.iter().map(|l| l.uri.clone()).collect();
     uris.sort_unstable();

@@ -23,7 +23,7 @@
 
 use super::summary::{BLOCK_CELLS, BLOCK_ZOOM, DATA_ZOOM, LEAF_ZOOM, TileSummary};
 use crate::building::feature::BUILDING_CLASS;
-use crate::geo::{LocalFrame, Region, TileCoord};
+use crate::geo::{GeoBbox, LocalFrame, Region, TileCoord};
 use crate::osm::MAX_BUILDING_EXTENT_M;
 use serde_json::{Value, json};
 
@@ -96,14 +96,21 @@ impl WorldTile {
 }
 
 impl WorldTile {
-    /// A tile of the covered area that holds no fetched data (yet): its square grown by the
-    /// largest building's extent (a leaf draws the groups whose representative point lies in
-    /// it, whole), from the lowest ground to the highest top; content only at the leaves, which
-    /// fetch their data tiles; the geometric error of blocks at zooms that draw them (a cell's
-    /// diagonal), the tile's width above.
-    pub fn unfetched(tile: TileCoord) -> Self {
+    /// A tile of the covered `area` that holds no fetched data (yet): the part of its square
+    /// inside the area, grown by the largest building's extent (a leaf draws the groups whose
+    /// representative point lies in it, whole), from the lowest ground to the highest top;
+    /// content only at the leaves, which fetch their data tiles; the geometric error of blocks
+    /// at zooms that draw them (a cell's diagonal), the tile's width above.
+    pub fn unfetched(tile: TileCoord, area: &GeoBbox) -> Self {
         let b = tile.bounds();
-        let square = Region::of_bbox(&b, UNFETCHED_FLOOR_M, UNFETCHED_TOP_M);
+        let square = Region {
+            west: b.min_lon().max(area.min_lon()),
+            south: b.min_lat().max(area.min_lat()),
+            east: b.max_lon().min(area.max_lon()),
+            north: b.max_lat().min(area.max_lat()),
+            min_height: UNFETCHED_FLOOR_M,
+            max_height: UNFETCHED_TOP_M,
+        };
         let grown = square.grown(MAX_BUILDING_EXTENT_M);
         let region = Region {
             west: grown.west.max(-180.0),
@@ -126,10 +133,10 @@ impl WorldTile {
         }
     }
 
-    /// This tile, over which an area is covered that may hold unfetched tiles below it: its
-    /// region holds theirs too, and its error is at least theirs.
-    pub fn covering_unfetched(self, tile: TileCoord) -> Self {
-        let unfetched = Self::unfetched(tile);
+    /// This tile, over which `area` is covered, so that it may hold unfetched tiles below it:
+    /// its region holds theirs too, and its error is at least theirs.
+    pub fn covering_unfetched(self, tile: TileCoord, area: &GeoBbox) -> Self {
+        let unfetched = Self::unfetched(tile, area);
         Self {
             region: self.region.union(&unfetched.region),
             geometric_error: self.geometric_error.max(unfetched.geometric_error),
