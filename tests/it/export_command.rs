@@ -447,20 +447,7 @@ fn every_vertex_of_a_kirchfeld_export_lies_inside_its_tiles_region() {
             .unwrap_or_else(|| panic!("{uri} is listed but not exported"));
         tiles += 1;
         rows += common::decode::feature_rows(glb).len();
-        for t in common::decode::triangles(glb) {
-            for q in t.corners {
-                let (lon, lat, h) = citymesh_core::geo::ecef_to_geodetic([q[0], -q[2], q[1]]);
-                let (lon, lat) = (lon.to_radians(), lat.to_radians());
-                assert!(
-                    (r[0]..=r[2]).contains(&lon)
-                        && (r[1]..=r[3]).contains(&lat)
-                        && (r[4]..=r[5]).contains(&h),
-                    "a {} vertex of {uri} at {lon}, {lat}, {h} lies outside {r:?}",
-                    t.material
-                );
-                vertices += 1;
-            }
-        }
+        vertices += common::decode::assert_inside_region(glb, &r, uri);
     }
     println!("{tiles} content tiles, {vertices} vertices, {rows} building rows");
     // Every file but the tileset is a listed tile's content.

@@ -7,7 +7,6 @@
 use crate::common;
 
 use axum::http::StatusCode;
-use citymesh_core::geo::ecef_to_geodetic;
 use clap::Parser;
 use common::{assert_valid_glb, get};
 use serde_json::Value;
@@ -104,23 +103,8 @@ async fn walk(app: &axum::Router, path: &str, files: &mut usize, out: &mut Vec<L
 
 /// Every vertex of the content `glb` lies inside its tile's region.
 fn assert_inside(glb: &[u8], l: &Listed) {
-    let decoded = common::decode::decode_meshopt(glb);
-    assert_valid_glb(&decoded);
-    let r = &l.region;
-    for t in common::decode::triangles(&decoded) {
-        for q in t.corners {
-            let (lon, lat, h) = ecef_to_geodetic([q[0], -q[2], q[1]]);
-            let (lon, lat) = (lon.to_radians(), lat.to_radians());
-            assert!(
-                (r[0]..=r[2]).contains(&lon)
-                    && (r[1]..=r[3]).contains(&lat)
-                    && (r[4]..=r[5]).contains(&h),
-                "a {} vertex of {} at {lon}, {lat}, {h} lies outside {r:?}",
-                t.material,
-                l.uri
-            );
-        }
-    }
+    assert_valid_glb(&common::decode::decode_meshopt(glb));
+    common::decode::assert_inside_region(glb, &l.region, &l.uri);
 }
 
 /// The zoom of a content path `/3dtiles/world/{z}/{x}/{y}.glb`.

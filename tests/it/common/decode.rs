@@ -327,3 +327,24 @@ pub fn feature_rows(glb: &[u8]) -> Vec<serde_json::Map<String, Value>> {
     }
     rows
 }
+
+/// Asserts that every vertex of the ECEF content `glb` (named `uri`) lies inside the 3D Tiles
+/// region `r` (radians, then metres), as a client reads both; answers how many vertices.
+pub fn assert_inside_region(glb: &[u8], r: &[f64], uri: &str) -> usize {
+    let mut vertices = 0;
+    for t in triangles(glb) {
+        for q in t.corners {
+            let (lon, lat, h) = citymesh_core::geo::ecef_to_geodetic([q[0], -q[2], q[1]]);
+            let (lon, lat) = (lon.to_radians(), lat.to_radians());
+            assert!(
+                (r[0]..=r[2]).contains(&lon)
+                    && (r[1]..=r[3]).contains(&lat)
+                    && (r[4]..=r[5]).contains(&h),
+                "a {} vertex of {uri} at {lon}, {lat}, {h} lies outside {r:?}",
+                t.material
+            );
+            vertices += 1;
+        }
+    }
+    vertices
+}
