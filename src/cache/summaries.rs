@@ -49,6 +49,8 @@ pub struct Summaries {
     data_tiles: AtomicUsize,
     /// Every summary is made (watched by [`Summaries::ready`]).
     ready: tokio::sync::watch::Sender<bool>,
+    /// Counts the makings finished (watched by [`Summaries::summarised`]).
+    made: tokio::sync::watch::Sender<u64>,
 }
 
 impl Summaries {
@@ -62,6 +64,7 @@ impl Summaries {
             kept: AtomicUsize::new(0),
             data_tiles: AtomicUsize::new(0),
             ready: tokio::sync::watch::channel(false).0,
+            made: tokio::sync::watch::channel(0).0,
         })
     }
 
@@ -70,6 +73,13 @@ impl Summaries {
         let mut ready = self.ready.subscribe();
         // The sender lives as long as `self`: the wait ends only when it is ready.
         let _ = ready.wait_for(|r| *r).await;
+    }
+
+    /// Waits until tile `t` has a summary (its data was summarised).
+    pub async fn summarised(&self, t: &TileCoord) {
+        let mut made = self.made.subscribe();
+        // The sender lives as long as `self`: the wait ends only when the tile is summarised.
+        let _ = made.wait_for(|_| self.get(t).is_some()).await;
     }
 
     pub fn progress(&self) -> SummaryProgress {
@@ -249,6 +259,7 @@ impl Summaries {
                 };
             }
         }
+        self.made.send_modify(|n| *n += 1);
         Ok(())
     }
 }

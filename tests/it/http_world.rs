@@ -486,11 +486,10 @@ async fn a_world_area_is_covered_before_its_data_is_fetched_and_its_leaves_fetch
         x: 8574,
         y: 5623,
     };
-    tokio::time::timeout(std::time::Duration::from_secs(60), async {
-        while state.summaries.get(&data_tile).is_none() {
-            tokio::time::sleep(std::time::Duration::from_millis(20)).await;
-        }
-    })
+    tokio::time::timeout(
+        std::time::Duration::from_secs(60),
+        state.summaries.summarised(&data_tile),
+    )
     .await
     .expect("the fetched data tile was never summarised");
     let mut again = Vec::new();
