@@ -311,16 +311,17 @@ async fn two_hundred_roof_jobs_are_shared_by_both_replicas_and_survive_a_kill() 
     };
     // Let both work, then kill -9 one in the middle of the batch.
     let deadline = Instant::now() + Duration::from_secs(600);
-    loop {
+    // Counted as each worker round ends: A's last round, cut short by the kill, is not in it;
+    // so the kill waits until A has finished a round as well.
+    let claimed_by_a = loop {
         let p = progress(&b).await;
-        if p["jobs"]["done"].as_i64().unwrap() >= 40 {
-            break;
+        let by_a = metric(&http, &a, "citymesh_roof_jobs_claimed_total").await;
+        if p["jobs"]["done"].as_i64().unwrap() >= 40 && by_a > 0.0 {
+            break by_a;
         }
         assert!(Instant::now() < deadline, "{p}");
         tokio::time::sleep(Duration::from_millis(50)).await;
-    }
-    // Counted as each worker round ends: A's last round, cut short by the kill, is not in it.
-    let claimed_by_a = metric(&http, &a, "citymesh_roof_jobs_claimed_total").await;
+    };
     a.child.kill().unwrap();
     a.child.wait().unwrap();
     let (states, _, _) = job_figures(&pg.url).await;

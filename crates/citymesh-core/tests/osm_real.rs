@@ -185,3 +185,40 @@ fn missing_nodes_and_members_are_skipped_and_the_rest_kept() {
     assert!(w < e && s < n && (8.38..8.41).contains(&w) && (49.03..49.07).contains(&s));
     assert_eq!(b.buildings.len() + b.skipped.len(), 2995 + 31);
 }
+
+/// Packed, every real file's buildings come back bit for bit, in far fewer bytes than the Overpass
+/// JSON the store used to keep (bytes per building, a whole file in one tile: Kirchfeld packs into
+/// 54 where its JSON takes 539 to 564, San Francisco 93 against 1,249).
+#[rstest]
+#[case("karlsruhe-kirchfeld.osm.pbf", 55)]
+#[case("karlsruhe-kirchfeld.overpass.json", 55)]
+#[case("karlsruhe-kit-nord.osm.pbf", 80)]
+#[case("tram-junction.osm.pbf", 95)]
+#[case("nuremberg-laufamholz.osm", 55)]
+#[case("san-francisco.overpass.json.gz", 95)]
+fn every_real_file_packs_and_unpacks_bit_for_bit(
+    #[case] file: &str,
+    #[case] max_per_building: usize,
+) {
+    use citymesh_core::osm::{pack, unpack, write_overpass_json};
+    let b = read(file);
+    let packed = pack(&b);
+    let back = unpack(&packed).unwrap();
+    let bits = |b: &OsmBuildings| -> Vec<u64> {
+        b.buildings
+            .iter()
+            .flat_map(|r| r.outers.iter().chain(&r.inners))
+            .flat_map(|r| &r.nodes)
+            .flat_map(|n| [n.lon.to_bits(), n.lat.to_bits()])
+            .collect()
+    };
+    assert_eq!(bits(&back), bits(&b));
+    assert_eq!(back, b);
+    let json = write_overpass_json(&b.buildings.iter().collect::<Vec<_>>()).len();
+    let per = packed.len() / b.buildings.len();
+    eprintln!(
+        "{file}: {per} B per building packed, {} as JSON",
+        json / b.buildings.len()
+    );
+    assert!(per <= max_per_building, "{per} bytes per building");
+}

@@ -7,6 +7,7 @@
 
 mod assemble;
 mod overpass_json;
+mod packed;
 mod pbf;
 mod raw;
 mod write;
@@ -16,6 +17,7 @@ pub use assemble::{
     BuildingRecord, MAX_BUILDING_EXTENT_M, MAX_TAG_BYTES, OsmBuildings, OsmId, Repaired, Ring,
     RingNode, SkipReason, Skipped, assemble,
 };
+pub use packed::{PACKED_VERSION, REPAIRS, is_packed, pack, pack_parts, unpack};
 pub use raw::{Member, MemberKind, RawOsm, RawRelation, RawWay, Tags};
 pub use write::write_overpass_json;
 
@@ -25,6 +27,8 @@ pub enum OsmFormat {
     OverpassJson,
     Xml,
     Pbf,
+    /// A data tile as citymesh stores it ([`pack`]).
+    Packed,
 }
 
 /// Why OSM input could not be read at all (a bad building is skipped instead, see [`SkipReason`]).
@@ -36,6 +40,8 @@ pub enum OsmError {
     Xml(String),
     #[error("not an OSM PBF file: {0}")]
     Pbf(String),
+    #[error("{0}")]
+    Packed(String),
     #[error("unrecognised OSM data: expected Overpass JSON, OSM XML or OSM PBF")]
     UnknownFormat,
 }
@@ -47,6 +53,9 @@ impl OsmFormat {
             .iter()
             .position(|b| !b.is_ascii_whitespace())
             .map_or(&[][..], |i| &bytes[i..]);
+        if is_packed(bytes) {
+            return Some(Self::Packed);
+        }
         match start.first() {
             Some(b'{') => Some(Self::OverpassJson),
             Some(b'<') => Some(Self::Xml),
@@ -64,6 +73,9 @@ impl OsmFormat {
 
 /// Reads OSM data in any supported format (recognised from its bytes) into building records.
 pub fn read_buildings(bytes: &[u8]) -> Result<OsmBuildings, OsmError> {
+    if is_packed(bytes) {
+        return unpack(bytes);
+    }
     Ok(assemble(read_raw(bytes)?))
 }
 
@@ -73,6 +85,9 @@ pub fn read_raw(bytes: &[u8]) -> Result<RawOsm, OsmError> {
         OsmFormat::OverpassJson => overpass_json::read(bytes),
         OsmFormat::Xml => xml::read(bytes),
         OsmFormat::Pbf => pbf::read(bytes),
+        OsmFormat::Packed => Err(OsmError::Packed(
+            "a packed data tile holds building records, not OSM elements".to_owned(),
+        )),
     }
 }
 
