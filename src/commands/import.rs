@@ -8,7 +8,7 @@ use crate::cache::TileStore;
 use crate::cache::invalidation::drop_stored;
 use crate::db::{self, Database};
 use crate::source::data_tiles::OsmTileStore;
-use crate::source::data_tiles::import::{ImportReport, import_files};
+use crate::source::data_tiles::import::{ImportOptions, ImportReport, import_files};
 use anyhow::Context;
 use std::path::PathBuf;
 
@@ -24,14 +24,27 @@ pub async fn import(
     import_into(files, &Database::Sqlite(pool), quiet).await
 }
 
-/// Imports the files into `db`. `quiet` hides the progress bars.
+/// Imports the files into `db` with the default memory budget. `quiet` hides the progress bars.
 pub async fn import_into(
     files: &[PathBuf],
     db: &Database,
     quiet: bool,
 ) -> anyhow::Result<ImportReport> {
+    let options = ImportOptions {
+        quiet,
+        ..ImportOptions::default()
+    };
+    import_with(files, db, &options).await
+}
+
+/// Imports the files into `db` as `options` say.
+pub async fn import_with(
+    files: &[PathBuf],
+    db: &Database,
+    options: &ImportOptions,
+) -> anyhow::Result<ImportReport> {
     let store = OsmTileStore::new(db.clone());
-    let mut report = import_files(files, &store, quiet).await?;
+    let mut report = import_files(files, &store, options).await?;
     let tiles = TileStore::open(db, u64::MAX, "import").await?;
     report.tiles_invalidated = drop_stored(&tiles, &report.changed_areas).await?;
     Ok(report)

@@ -56,15 +56,24 @@ async fn run_async(command: Command) -> anyhow::Result<()> {
         Command::Serve(args) => serve::run(*args).await,
         Command::Import(args) => {
             let db = args.database.open().await?;
-            let report = import::import_into(&args.files, &db, args.quiet).await?;
+            let options = crate::source::data_tiles::import::ImportOptions {
+                memory_bytes: args.memory_mb << 20,
+                temp_dir: args.temp_dir.clone(),
+                quiet: args.quiet,
+            };
+            let report = import::import_with(&args.files, &db, &options).await?;
             println!(
-                "imported {} buildings ({} skipped) into {} data tiles ({} changed; {} generated tiles dropped) in {}",
+                "imported {} buildings ({} skipped) into {} data tiles ({} changed; {} generated tiles dropped) in {}: {} bytes stored ({:.0} per building), {:.1} s ({:.0} buildings/s)",
                 report.buildings,
                 report.skipped,
                 report.data_tiles,
                 report.changed_data_tiles,
                 report.tiles_invalidated,
-                args.database.describe()
+                args.database.describe(),
+                report.stored_bytes,
+                report.stored_bytes as f64 / report.buildings.max(1) as f64,
+                report.seconds,
+                report.buildings as f64 / report.seconds.max(1e-3),
             );
             // Which buildings were left out, and why (a building over 2 km, a node out of
             // range, missing nodes, ...), the first hundred by id.

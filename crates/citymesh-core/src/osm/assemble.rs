@@ -219,7 +219,7 @@ fn is_yes(tags: &Tags, key: &str) -> bool {
 }
 
 /// Whether the tags make a building (`Some(false)`) or a building part (`Some(true)`).
-fn building_kind(tags: &Tags) -> Option<bool> {
+pub fn building_kind(tags: &Tags) -> Option<bool> {
     if is_yes(tags, "building") {
         Some(false)
     } else if is_yes(tags, "building:part") {

@@ -15,8 +15,14 @@ mod xml;
 
 pub use assemble::{
     BuildingRecord, MAX_BUILDING_EXTENT_M, MAX_TAG_BYTES, OsmBuildings, OsmId, Repaired, Ring,
-    RingNode, SkipReason, Skipped, assemble,
+    RingNode, SkipReason, Skipped, assemble, building_kind,
 };
+
+/// Whether a relation's tags make it a building multipolygon, whose member ways
+/// [`assemble`] joins into rings.
+pub fn is_building_multipolygon(tags: &Tags) -> bool {
+    tags.get("type").map(String::as_str) == Some("multipolygon") && building_kind(tags).is_some()
+}
 pub use packed::{PACKED_VERSION, REPAIRS, is_packed, pack, pack_parts, unpack};
 pub use raw::{Member, MemberKind, RawOsm, RawRelation, RawWay, Tags};
 pub use write::write_overpass_json;
