@@ -27,6 +27,7 @@ mod http_serving;
 mod http_slopes;
 mod http_world;
 mod import_abuse;
+mod import_stream;
 mod job_queue_backends;
 mod replicas;
 mod roof_prior;

@@ -26,7 +26,9 @@ use crate::source::read_osm_file;
 use anyhow::Context;
 use citymesh_core::building::cluster::record_bounds;
 use citymesh_core::geo::{GeoBbox, TileCoord};
-use citymesh_core::osm::{BuildingRecord, OsmBuildings, OsmFormat, pack_parts, read_buildings, unpack};
+use citymesh_core::osm::{
+    BuildingRecord, OsmBuildings, OsmFormat, pack_parts, read_buildings, unpack,
+};
 use indicatif::{ProgressBar, ProgressStyle};
 use pbf_stream::{PbfError, StreamLimits};
 use spill::{Spilled, TileSpill};
@@ -103,7 +105,42 @@ fn bar(len: u64, what: &str, quiet: bool) -> ProgressBar {
     bar
 }
 
-/// Building records into the spill, each with every data tile its outline overlaps.
+/// Building records packed for the spill, each with every data tile its outline overlaps
+/// (made on the thread that read them).
+struct Prepared {
+    /// Data tile, whether it counts the building, the packed record.
+    entries: Vec<(TileCoord, bool, std::sync::Arc<[u8]>)>,
+    skipped: Vec<citymesh_core::osm::Skipped>,
+    records: u64,
+}
+
+fn prepare(osm: OsmBuildings) -> Prepared {
+    let mut entries = Vec::with_capacity(osm.buildings.len());
+    let mut records = 0;
+    for r in &osm.buildings {
+        let [x0, y0, x1, y1] = record_bounds(r);
+        if !(x0.is_finite() && y0.is_finite() && x1.is_finite() && y1.is_finite()) {
+            continue;
+        }
+        let nw = TileCoord::containing(DATA_ZOOM, x0, y1);
+        let se = TileCoord::containing(DATA_ZOOM, x1, y0);
+        let packed: std::sync::Arc<[u8]> = pack_parts(&[r], &[], &[]).into();
+        for x in nw.x..=se.x {
+            for y in nw.y..=se.y {
+                let home = x == nw.x && y == nw.y;
+                entries.push((TileCoord { z: DATA_ZOOM, x, y }, home, packed.clone()));
+            }
+        }
+        records += 1;
+    }
+    Prepared {
+        entries,
+        skipped: osm.skipped,
+        records,
+    }
+}
+
+/// Building records into the spill.
 struct Spiller {
     spill: TileSpill,
     report: ImportReport,
@@ -112,31 +149,19 @@ struct Spiller {
 }
 
 impl Spiller {
-    fn add(&mut self, osm: OsmBuildings) -> Result<(), spill::SpillError> {
-        self.report.skipped += osm.skipped.len();
+    fn add(&mut self, p: Prepared) -> Result<(), spill::SpillError> {
+        self.report.skipped += p.skipped.len();
         let room = MAX_LISTED_SKIPS.saturating_sub(self.report.skips.len());
         self.report.skips.extend(
-            osm.skipped
+            p.skipped
                 .iter()
                 .take(room)
                 .map(|s| (s.id.to_string(), s.reason.name())),
         );
-        for r in &osm.buildings {
-            let [x0, y0, x1, y1] = record_bounds(r);
-            if !(x0.is_finite() && y0.is_finite() && x1.is_finite() && y1.is_finite()) {
-                continue;
-            }
-            let nw = TileCoord::containing(DATA_ZOOM, x0, y1);
-            let se = TileCoord::containing(DATA_ZOOM, x1, y0);
-            let packed = pack_parts(&[r], &[], &[]);
-            for x in nw.x..=se.x {
-                for y in nw.y..=se.y {
-                    let home = x == nw.x && y == nw.y;
-                    self.spill.push(&TileCoord { z: DATA_ZOOM, x, y }, home, &packed)?;
-                }
-            }
-            self.records += 1;
+        for (t, home, bytes) in &p.entries {
+            self.spill.push(t, *home, bytes)?;
         }
+        self.records += p.records;
         Ok(())
     }
 }
@@ -162,7 +187,8 @@ fn read_files(
     let threads = std::thread::available_parallelism().map_or(2, usize::from);
     let limits = StreamLimits {
         threads,
-        cache_bytes: usize::try_from(options.memory_bytes / 4 / threads as u64).unwrap_or(usize::MAX),
+        cache_bytes: usize::try_from(options.memory_bytes / 4 / threads as u64)
+            .unwrap_or(usize::MAX),
     };
     for path in files {
         let name = path.display().to_string();
@@ -175,14 +201,14 @@ fn read_files(
             let before = s.records;
             let counts = {
                 let progress = |at: u64| reading.set_position(at);
-                let mut each = |osm: OsmBuildings| -> Result<(), PbfError> {
-                    s.add(osm).map_err(|e| PbfError::Records(e.to_string()))?;
+                let mut each = |p: Prepared| -> Result<(), PbfError> {
+                    s.add(p).map_err(|e| PbfError::Records(e.to_string()))?;
                     let done = s.records - before;
                     let rate = done as f64 / started.elapsed().as_secs_f64().max(1e-3);
                     reading.set_message(format!("{done} buildings, {rate:.0}/s"));
                     Ok(())
                 };
-                pbf_stream::stream(path, temp_dir, &limits, &progress, &mut each)
+                pbf_stream::stream(path, temp_dir, &limits, &progress, &prepare, &mut each)
                     .with_context(|| format!("{name}: an OSM PBF file"))?
             };
             reading.finish_and_clear();
@@ -203,7 +229,7 @@ fn read_files(
                 format!("{name}: give OSM PBF, OSM XML or Overpass JSON, optionally .gz")
             })?;
             drop(bytes);
-            s.add(osm)?;
+            s.add(prepare(osm))?;
         }
     }
     Ok(s)
@@ -250,12 +276,13 @@ pub async fn import_files(
     let temp_path = temp.path().to_owned();
     let spiller =
         tokio::task::spawn_blocking(move || read_files(&files_owned, &temp_path, &opts)).await??;
-    let Spiller { spill, mut report, .. } = spiller;
+    let Spiller {
+        spill, mut report, ..
+    } = spiller;
 
     // Grouped into data tiles on a blocking thread, written here, in one transaction.
-    let (tx, mut rx) = tokio::sync::mpsc::channel::<anyhow::Result<(TileCoord, Vec<u8>, usize)>>(
-        TILES_IN_FLIGHT,
-    );
+    let (tx, mut rx) =
+        tokio::sync::mpsc::channel::<anyhow::Result<(TileCoord, Vec<u8>, usize)>>(TILES_IN_FLIGHT);
     let allowance = options.memory_bytes / 4;
     let grouping = tokio::task::spawn_blocking(move || {
         let result = spill.drain(allowance, |t, records| {

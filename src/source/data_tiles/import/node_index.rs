@@ -24,13 +24,12 @@ const BLOCK: usize = ENTRY * PER_BLOCK;
 /// Why nodes could not be indexed or looked up.
 #[derive(Debug, thiserror::Error)]
 pub enum NodeIndexError {
-    #[error("node {id} comes after node {previous}: the file is not sorted by id (sort it with `osmium sort`)")]
+    #[error(
+        "node {id} comes after node {previous}: the file is not sorted by id (sort it with `osmium sort`)"
+    )]
     OutOfOrder { id: i64, previous: i64 },
     #[error("cannot write the node index in {dir}: {source}")]
-    Write {
-        dir: String,
-        source: std::io::Error,
-    },
+    Write { dir: String, source: std::io::Error },
     #[error("cannot read the node index: {0}")]
     Read(std::io::Error),
 }
@@ -70,17 +69,19 @@ impl NodeIndexWriter {
             return Err(NodeIndexError::OutOfOrder { id, previous });
         }
         self.last = Some(id);
-        if self.count % PER_BLOCK as u64 == 0 {
+        if self.count.is_multiple_of(PER_BLOCK as u64) {
             self.firsts.push(id);
         }
         let mut entry = [0u8; ENTRY];
         entry[..8].copy_from_slice(&id.to_le_bytes());
         entry[8..12].copy_from_slice(&lon.to_le_bytes());
         entry[12..].copy_from_slice(&lat.to_le_bytes());
-        self.out.write_all(&entry).map_err(|source| NodeIndexError::Write {
-            dir: self.dir.clone(),
-            source,
-        })?;
+        self.out
+            .write_all(&entry)
+            .map_err(|source| NodeIndexError::Write {
+                dir: self.dir.clone(),
+                source,
+            })?;
         self.count += 1;
         Ok(())
     }
@@ -93,13 +94,10 @@ impl NodeIndexWriter {
     /// The index, ready for lookups.
     pub fn finish(self) -> Result<NodeLocations, NodeIndexError> {
         let dir = self.dir;
-        let file = self
-            .out
-            .into_inner()
-            .map_err(|e| NodeIndexError::Write {
-                dir: dir.clone(),
-                source: e.into_error(),
-            })?;
+        let file = self.out.into_inner().map_err(|e| NodeIndexError::Write {
+            dir: dir.clone(),
+            source: e.into_error(),
+        })?;
         Ok(NodeLocations {
             file,
             firsts: self.firsts,
@@ -145,14 +143,13 @@ fn entry_i32(block: &[u8], at: usize) -> i32 {
 }
 
 impl NodeLocations {
-    /// Nodes indexed.
-    pub fn len(&self) -> u64 {
-        self.count
-    }
-
     /// The location of node `id` (longitude and latitude in whole 1e-7 degrees), if the file
     /// has it.
-    pub fn get(&self, id: i64, cache: &mut BlockCache) -> Result<Option<(i32, i32)>, NodeIndexError> {
+    pub fn get(
+        &self,
+        id: i64,
+        cache: &mut BlockCache,
+    ) -> Result<Option<(i32, i32)>, NodeIndexError> {
         let Some(block) = self.firsts.partition_point(|f| *f <= id).checked_sub(1) else {
             return Ok(None);
         };
@@ -177,7 +174,10 @@ impl NodeLocations {
                 std::cmp::Ordering::Greater => hi = mid,
                 std::cmp::Ordering::Equal => {
                     let at = mid * ENTRY;
-                    return Ok(Some((entry_i32(&bytes[..], at + 8), entry_i32(&bytes[..], at + 12))));
+                    return Ok(Some((
+                        entry_i32(&bytes[..], at + 8),
+                        entry_i32(&bytes[..], at + 12),
+                    )));
                 }
             }
         }
@@ -211,7 +211,7 @@ mod tests {
                 ids.push(id);
             }
             let nodes = w.finish().unwrap();
-            prop_assert_eq!(nodes.len(), ids.len() as u64);
+            prop_assert_eq!(nodes.count, ids.len() as u64);
             let mut cache = BlockCache::new(cache_blocks * BLOCK);
             for (i, id) in ids.iter().enumerate() {
                 prop_assert_eq!(nodes.get(*id, &mut cache).unwrap(), Some((i as i32, -(i as i32))));
@@ -229,7 +229,10 @@ mod tests {
         let mut w = NodeIndexWriter::create(dir.path()).unwrap();
         w.push(10, 0, 0).unwrap();
         let e = w.push(7, 0, 0).unwrap_err().to_string();
-        assert!(e.contains("node 7 comes after node 10") && e.contains("osmium sort"), "{e}");
+        assert!(
+            e.contains("node 7 comes after node 10") && e.contains("osmium sort"),
+            "{e}"
+        );
         assert!(w.push(10, 0, 0).is_err(), "a repeated id too");
     }
 }

@@ -93,7 +93,10 @@ fn data_blocks(path: &Path) -> Result<Vec<ByteOffset>, PbfError> {
 fn decode(blob: &Blob) -> Result<PrimitiveBlock, PbfError> {
     match blob.decode().map_err(|e| corrupt(blob.offset(), e))? {
         BlobDecode::OsmData(block) => Ok(block),
-        _ => Err(corrupt(blob.offset(), "a data block that does not decode as one")),
+        _ => Err(corrupt(
+            blob.offset(),
+            "a data block that does not decode as one",
+        )),
     }
 }
 
@@ -131,18 +134,26 @@ fn read_relations(
     let mut relation_only = 0;
     let mut after: Option<i64> = None;
     for at in blocks.iter().rev() {
-        let blob = reader.blob_from_offset(*at).map_err(|e| corrupt(Some(*at), e))?;
+        let blob = reader
+            .blob_from_offset(*at)
+            .map_err(|e| corrupt(Some(*at), e))?;
         let block = decode(&blob)?;
         let h = holds(&block);
         if !h.relations {
             break;
         }
         let mut in_block = Vec::new();
-        for r in block.groups().flat_map(|g| g.relations().collect::<Vec<_>>()) {
+        for r in block
+            .groups()
+            .flat_map(|g| g.relations().collect::<Vec<_>>())
+        {
             if let Some(last) = in_block.last().map(|(id, _)| *id)
                 && r.id() <= last
             {
-                return Err(PbfError::NotSorted(format!("relation {} after relation {last}", r.id())));
+                return Err(PbfError::NotSorted(format!(
+                    "relation {} after relation {last}",
+                    r.id()
+                )));
             }
             counts.relations += 1;
             let t = tags(r.tags());
@@ -168,7 +179,9 @@ fn read_relations(
         if let (Some((last, _)), Some(next)) = (in_block.last(), after)
             && *last >= next
         {
-            return Err(PbfError::NotSorted(format!("relation {next} after relation {last}")));
+            return Err(PbfError::NotSorted(format!(
+                "relation {next} after relation {last}"
+            )));
         }
         after = in_block.first().map(|(id, _)| *id);
         kept.extend(in_block.into_iter().rev().filter_map(|(_, r)| r));
@@ -196,7 +209,7 @@ fn in_order<S, T: Send>(
     let stop = AtomicBool::new(false);
     let (work_tx, work_rx) = sync_channel::<(usize, Blob)>(threads * 2);
     let work_rx = Mutex::new(work_rx);
-    let (done_tx, done_rx) = sync_channel::<(usize, Result<T, PbfError>)>(threads * 4);
+    let (done_tx, done_rx) = sync_channel::<(usize, Result<T, PbfError>)>(threads);
     std::thread::scope(|s| {
         for _ in 0..threads.max(1) {
             let done_tx = done_tx.clone();
@@ -242,7 +255,7 @@ fn in_order<S, T: Send>(
         let mut pending = BTreeMap::new();
         let mut next = 0;
         let mut outcome = Ok(());
-        for (i, result) in done_rx.iter() {
+        for (i, result) in &done_rx {
             if stop.load(Ordering::Relaxed) {
                 continue;
             }
@@ -267,29 +280,39 @@ fn in_order<S, T: Send>(
     })
 }
 
+/// A member way of a building multipolygon, with its nodes' locations.
+type MemberWay = (RawWay, Vec<(i64, (f64, f64))>);
+
 /// What the ways of one block gave.
-struct WayBlock {
-    buildings: OsmBuildings,
+struct WayBlock<P> {
+    /// The block's buildings as `prepare` made them, a batch at a time.
+    buildings: Vec<P>,
     /// Member ways of building multipolygons, with their nodes' locations.
-    members: Vec<(RawWay, Vec<(i64, (f64, f64))>)>,
+    members: Vec<MemberWay>,
     first: Option<i64>,
     last: Option<i64>,
     ways: u64,
 }
+
+/// Building ways assembled at once.
+const BATCH: usize = 256;
 
 /// A location as a PBF reader computes it from whole 1e-7 degrees (nanodegrees times 1e-9).
 fn degrees(units: i32) -> f64 {
     1e-9 * (i64::from(units) * 100) as f64
 }
 
-/// The buildings of the PBF file at `path`, a block at a time, to `each`; `progress` gets the
-/// bytes read so far. Node locations are kept in `temp_dir`.
-pub fn stream(
+/// The buildings of the PBF file at `path`, a block at a time: made into `P` by `prepare` on
+/// the thread that decoded the block (so what waits to be consumed is small), then handed to
+/// `each` in file order; `progress` gets the bytes read so far. Node locations are kept in
+/// `temp_dir`.
+pub fn stream<P: Send>(
     path: &Path,
     temp_dir: &Path,
     limits: &StreamLimits,
     progress: &(dyn Fn(u64) + Sync),
-    each: &mut dyn FnMut(OsmBuildings) -> Result<(), PbfError>,
+    prepare: &(dyn Fn(OsmBuildings) -> P + Sync),
+    each: &mut dyn FnMut(P) -> Result<(), PbfError>,
 ) -> Result<StreamCounts, PbfError> {
     let mut counts = StreamCounts::default();
     let blocks = data_blocks(path)?;
@@ -315,8 +338,14 @@ pub fn stream(
             let block = decode(blob)?;
             let mut nodes = Vec::new();
             for g in block.groups() {
-                nodes.extend(g.dense_nodes().map(|n| (n.id(), n.decimicro_lon(), n.decimicro_lat())));
-                nodes.extend(g.nodes().map(|n| (n.id(), n.decimicro_lon(), n.decimicro_lat())));
+                nodes.extend(
+                    g.dense_nodes()
+                        .map(|n| (n.id(), n.decimicro_lon(), n.decimicro_lat())),
+                );
+                nodes.extend(
+                    g.nodes()
+                        .map(|n| (n.id(), n.decimicro_lon(), n.decimicro_lat())),
+                );
             }
             let h = holds(&block);
             Ok((nodes, h.ways || h.relations))
@@ -339,12 +368,12 @@ pub fn stream(
     // Step 3: the ways.
     let ways_from = first_other;
     let ways = &blocks[ways_from..];
-    let mut kept_members: Vec<(RawWay, Vec<(i64, (f64, f64))>)> = Vec::new();
+    let mut kept_members: Vec<MemberWay> = Vec::new();
     let mut last_way: Option<i64> = None;
     let node_reads = Mutex::new(0u64);
     {
         let work = |i: usize, blob: &Blob, cache: &mut BlockCache| {
-            way_block(&decode(blob)?, i == 0, &members, &nodes, cache)
+            way_block(&decode(blob)?, i == 0, &members, &nodes, cache, prepare)
         };
         in_order(
             path,
@@ -362,7 +391,9 @@ pub fn stream(
                 counts.ways += block.ways;
                 kept_members.extend(block.members);
                 progress(offset(ways_from + i));
-                each(block.buildings)?;
+                for batch in block.buildings {
+                    each(batch)?;
+                }
                 Ok(ControlFlow::Continue(()))
             },
         )?;
@@ -379,7 +410,7 @@ pub fn stream(
         raw.nodes.extend(located);
         raw.ways.push(way);
     }
-    each(assemble(raw))?;
+    each(prepare(assemble(raw)))?;
     Ok(counts)
 }
 
@@ -395,13 +426,14 @@ impl Drop for CountedCache<'_> {
 }
 
 /// The building ways of one block, assembled; member ways kept with their nodes.
-fn way_block(
+fn way_block<P>(
     block: &PrimitiveBlock,
     nodes_allowed: bool,
     members: &HashSet<i64>,
     nodes: &NodeLocations,
     cache: &mut BlockCache,
-) -> Result<WayBlock, PbfError> {
+    prepare: &(dyn Fn(OsmBuildings) -> P + Sync),
+) -> Result<WayBlock<P>, PbfError> {
     let h = holds(block);
     if h.relations {
         return Err(PbfError::NotSorted(
@@ -413,20 +445,21 @@ fn way_block(
     }
     let mut raw = RawOsm::default();
     let mut out = WayBlock {
-        buildings: OsmBuildings::default(),
+        buildings: Vec::new(),
         members: Vec::new(),
         first: None,
         last: None,
         ways: 0,
     };
-    let mut locate = |refs: &[i64], into: &mut dyn FnMut(i64, (f64, f64))| -> Result<(), PbfError> {
-        for &id in refs {
-            if let Some((lon, lat)) = nodes.get(id, cache)? {
-                into(id, (degrees(lon), degrees(lat)));
+    let mut locate =
+        |refs: &[i64], into: &mut dyn FnMut(i64, (f64, f64))| -> Result<(), PbfError> {
+            for &id in refs {
+                if let Some((lon, lat)) = nodes.get(id, cache)? {
+                    into(id, (degrees(lon), degrees(lat)));
+                }
             }
-        }
-        Ok(())
-    };
+            Ok(())
+        };
     for g in block.groups() {
         for w in g.ways() {
             let id = w.id();
@@ -461,9 +494,14 @@ fn way_block(
                     raw.nodes.insert(id, p);
                 })?;
                 raw.ways.push(way);
+                // Assembled a batch at a time: records are large, what `prepare` makes small.
+                if raw.ways.len() >= BATCH {
+                    out.buildings
+                        .push(prepare(assemble(std::mem::take(&mut raw))));
+                }
             }
         }
     }
-    out.buildings = assemble(raw);
+    out.buildings.push(prepare(assemble(raw)));
     Ok(out)
 }

@@ -44,7 +44,12 @@ fn bucket_of(t: &TileCoord, depth: u32, n: usize) -> usize {
     (xxhash_rust::xxh3::xxh3_64(&key.to_le_bytes()) as usize) % n
 }
 
-fn write_entry(out: &mut impl Write, t: &TileCoord, home: bool, bytes: &[u8]) -> std::io::Result<()> {
+fn write_entry(
+    out: &mut impl Write,
+    t: &TileCoord,
+    home: bool,
+    bytes: &[u8],
+) -> std::io::Result<()> {
     let mut head = [0u8; 14];
     head[0] = t.z;
     head[1] = u8::from(home);
@@ -75,7 +80,13 @@ fn read_entry(input: &mut impl Read) -> std::io::Result<Option<(TileCoord, Spill
     };
     let mut bytes = vec![0u8; word(10) as usize];
     input.read_exact(&mut bytes)?;
-    Ok(Some((t, Spilled { home: head[1] != 0, bytes })))
+    Ok(Some((
+        t,
+        Spilled {
+            home: head[1] != 0,
+            bytes,
+        },
+    )))
 }
 
 impl TileSpill {
@@ -153,7 +164,13 @@ fn drain_file(
             .collect::<Result<Vec<_>, _>>()
             .map_err(err)?;
         while let Some((t, s)) = read_entry(&mut input).map_err(err)? {
-            write_entry(&mut parts[bucket_of(&t, depth, SPLIT)], &t, s.home, &s.bytes).map_err(err)?;
+            write_entry(
+                &mut parts[bucket_of(&t, depth, SPLIT)],
+                &t,
+                s.home,
+                &s.bytes,
+            )
+            .map_err(err)?;
         }
         drop(input);
         for part in parts {
