@@ -367,3 +367,35 @@ async fn a_disk_that_fills_up_fails_the_import_by_name_and_leaves_the_store_as_i
     let db = sqlite(&file).await;
     assert_eq!(rows(&db).await, before);
 }
+
+#[tokio::test]
+async fn postgresql_takes_the_import_in_bulk_and_holds_exactly_what_sqlite_holds() {
+    let pg = common::postgres::Postgres::start();
+    let dir = tempfile::tempdir().unwrap();
+    let lite = sqlite(&dir.path().join("c.sqlite")).await;
+    let postgres = Database::Postgres(db::open_postgres(&pg.url, 4).await.unwrap());
+    let files = [
+        osm("karlsruhe-kirchfeld.osm.pbf"),
+        osm("karlsruhe-kit-nord.osm.pbf"),
+    ];
+    let opts = options(16, dir.path());
+    let on_sqlite = import_with(&files, &lite, &opts).await.unwrap();
+    let on_postgres = import_with(&files, &postgres, &opts).await.unwrap();
+    assert_eq!(on_postgres.buildings, 3026 + 602);
+    assert_eq!(on_postgres.data_tiles, on_sqlite.data_tiles);
+    assert_eq!(on_postgres.changed_data_tiles, on_postgres.data_tiles);
+    assert_eq!(rows(&postgres).await, rows(&lite).await);
+    assert_eq!(stored(&postgres).await, whole_file_tiles(&files));
+
+    // The same files again: the hashes each bulk write replaced are the tiles' own.
+    let again = import_with(&files, &postgres, &opts).await.unwrap();
+    assert_eq!(
+        (again.data_tiles, again.changed_data_tiles),
+        (on_sqlite.data_tiles, 0)
+    );
+    // One file changed: exactly the data tiles under it change.
+    let kirchfeld = import_with(&files[..1], &postgres, &opts).await.unwrap();
+    let only = import_with(&files[..1], &lite, &opts).await.unwrap();
+    assert_eq!(kirchfeld.changed_data_tiles, only.changed_data_tiles);
+    assert_eq!(rows(&postgres).await, rows(&lite).await);
+}

@@ -45,6 +45,9 @@ pub const MIN_MEMORY_MB: u64 = 16;
 const MAX_LISTED_SKIPS: usize = 10_000;
 /// Packed data tiles in flight between grouping and the database.
 const TILES_IN_FLIGHT: usize = 64;
+/// Data tiles written at once (PostgreSQL: one round trip), unless they hold more than a
+/// sixteenth of the budget first.
+const WRITE_BATCH: usize = 256;
 
 /// How an import may use the machine.
 #[derive(Debug, Clone)]
@@ -296,16 +299,35 @@ pub async fn import_files(
     });
     let writing = bar(0, "storing data tiles", options.quiet);
     let mut writer = store.import_writer().await?;
-    while let Some(next) = rx.recv().await {
-        let (t, body, homes) = next?;
-        report.buildings += homes;
-        report.data_tiles += 1;
-        report.stored_bytes += body.len() as u64;
-        if writer.put(&t, &body).await? {
-            report.changed_data_tiles += 1;
-            report.changed_areas.push(affected_area(&t));
+    let mut batch: Vec<(TileCoord, Vec<u8>)> = Vec::new();
+    let mut batch_bytes = 0u64;
+    let batch_limit = (options.memory_bytes / 16).max(1 << 20);
+    loop {
+        let next = rx.recv().await;
+        let last = next.is_none();
+        if let Some(next) = next {
+            let (t, body, homes) = next?;
+            report.buildings += homes;
+            report.data_tiles += 1;
+            report.stored_bytes += body.len() as u64;
+            batch_bytes += body.len() as u64;
+            batch.push((t, body));
         }
-        writing.inc(1);
+        if batch.len() >= WRITE_BATCH || batch_bytes >= batch_limit || (last && !batch.is_empty()) {
+            let changed = writer.put_many(&batch).await?;
+            for ((t, _), changed) in batch.iter().zip(changed) {
+                if changed {
+                    report.changed_data_tiles += 1;
+                    report.changed_areas.push(affected_area(t));
+                }
+            }
+            writing.inc(batch.len() as u64);
+            batch.clear();
+            batch_bytes = 0;
+        }
+        if last {
+            break;
+        }
     }
     grouping.await?;
     writer.commit().await?;

@@ -210,17 +210,38 @@ pub(super) enum ImportTx {
 impl ImportWriter {
     /// Stores an imported data tile; answers whether its content changed.
     pub async fn put(&mut self, t: &TileCoord, body: &[u8]) -> Result<bool, sqlx::Error> {
-        let hash = content_hash(body);
-        let origin = DataOrigin::Import;
-        let row = statements::NewRow {
-            t,
-            body,
-            hash: &hash,
-            origin,
-            now_secs: self.clock.now_secs(),
-        };
-        let previous = statements::put_in(&mut self.tx, &row).await?;
-        Ok(previous.as_deref() != Some(hash.as_str()))
+        let changed = self.put_many(&[(*t, body)]).await?;
+        Ok(changed.first().copied().unwrap_or(false))
+    }
+
+    /// Stores imported data tiles (distinct tiles) in one round trip where the database allows;
+    /// answers, for each, whether its content changed.
+    pub async fn put_many<B: AsRef<[u8]>>(
+        &mut self,
+        tiles: &[(TileCoord, B)],
+    ) -> Result<Vec<bool>, sqlx::Error> {
+        let now_secs = self.clock.now_secs();
+        let hashes: Vec<String> = tiles
+            .iter()
+            .map(|(_, body)| content_hash(body.as_ref()))
+            .collect();
+        let rows: Vec<statements::NewRow<'_>> = tiles
+            .iter()
+            .zip(&hashes)
+            .map(|((t, body), hash)| statements::NewRow {
+                t,
+                body: body.as_ref(),
+                hash,
+                origin: DataOrigin::Import,
+                now_secs,
+            })
+            .collect();
+        let previous = statements::put_many_in(&mut self.tx, &rows).await?;
+        Ok(previous
+            .iter()
+            .zip(&hashes)
+            .map(|(p, h)| p.as_deref() != Some(h.as_str()))
+            .collect())
     }
 
     /// Makes every tile put visible at once.

@@ -163,16 +163,75 @@ pub(super) async fn put(db: &Database, row: &NewRow<'_>) -> Result<Option<String
     })
 }
 
-/// Stores the row in the caller's transaction (see `ImportWriter`); answers the hash it
-/// replaced.
-pub(super) async fn put_in(
+/// Stores the rows in the caller's transaction (see `ImportWriter`); answers the hash each
+/// replaced. PostgreSQL takes them in two statements (arrays, `UNNEST`) whatever their number;
+/// SQLite, in the process, one row at a time.
+pub(super) async fn put_many_in(
     tx: &mut super::ImportTx,
-    row: &NewRow<'_>,
-) -> Result<Option<String>, sqlx::Error> {
-    Ok(match tx {
-        super::ImportTx::Sqlite(tx) => put_row!(&mut **tx, row, SQLITE.previous_hash),
-        super::ImportTx::Postgres(tx) => put_row!(&mut **tx, row, POSTGRES.previous_hash),
-    })
+    rows: &[NewRow<'_>],
+) -> Result<Vec<Option<String>>, sqlx::Error> {
+    match tx {
+        super::ImportTx::Sqlite(tx) => {
+            let mut previous = Vec::with_capacity(rows.len());
+            for row in rows {
+                previous.push(put_row!(&mut **tx, row, SQLITE.previous_hash));
+            }
+            Ok(previous)
+        }
+        super::ImportTx::Postgres(tx) => {
+            let column = |f: fn(&NewRow<'_>) -> i64| rows.iter().map(f).collect::<Vec<i64>>();
+            let (z, x, y) = (
+                column(|r| i64::from(r.t.z)),
+                column(|r| i64::from(r.t.x)),
+                column(|r| i64::from(r.t.y)),
+            );
+            let held: Vec<(i64, i64, i64, String)> = sqlx::query_as(
+                "SELECT t.z, t.x, t.y, t.hash FROM osm_data_tiles t \
+                 JOIN UNNEST($1::int8[], $2::int8[], $3::int8[]) AS u(z, x, y) \
+                 ON t.z = u.z AND t.x = u.x AND t.y = u.y FOR UPDATE OF t",
+            )
+            .bind(&z)
+            .bind(&x)
+            .bind(&y)
+            .fetch_all(&mut **tx)
+            .await?;
+            let held: HashMap<(i64, i64, i64), String> = held
+                .into_iter()
+                .map(|(z, x, y, h)| ((z, x, y), h))
+                .collect();
+            sqlx::query(
+                "INSERT INTO osm_data_tiles (z, x, y, body, hash, source, fetched_at, size, \
+                 last_used) SELECT * FROM UNNEST($1::int8[], $2::int8[], $3::int8[], \
+                 $4::bytea[], $5::text[], $6::text[], $7::int8[], $8::int8[], $9::int8[]) \
+                 ON CONFLICT (z, x, y) DO UPDATE SET body = excluded.body, \
+                 hash = excluded.hash, source = excluded.source, \
+                 fetched_at = excluded.fetched_at, size = excluded.size, \
+                 last_used = excluded.last_used",
+            )
+            .bind(&z)
+            .bind(&x)
+            .bind(&y)
+            .bind(rows.iter().map(|r| r.body).collect::<Vec<&[u8]>>())
+            .bind(rows.iter().map(|r| r.hash).collect::<Vec<&str>>())
+            .bind(
+                rows.iter()
+                    .map(|r| r.origin.as_str())
+                    .collect::<Vec<&str>>(),
+            )
+            .bind(column(|r| r.now_secs))
+            .bind(column(|r| i64::try_from(r.body.len()).unwrap_or(i64::MAX)))
+            .bind(column(|r| r.now_secs.saturating_mul(1000)))
+            .execute(&mut **tx)
+            .await?;
+            Ok(rows
+                .iter()
+                .map(|r| {
+                    held.get(&(i64::from(r.t.z), i64::from(r.t.x), i64::from(r.t.y)))
+                        .cloned()
+                })
+                .collect())
+        }
+    }
 }
 
 /// Whether a data tile is stored (its body is not read).
