@@ -11,7 +11,7 @@ use citymesh::source::data_tiles::OsmTileStore;
 use citymesh::source::data_tiles::import::ImportOptions;
 use citymesh_core::building::cluster::record_bounds;
 use citymesh_core::geo::TileCoord;
-use citymesh_core::osm::{BuildingRecord, read_buildings, unpack, write_overpass_json};
+use citymesh_core::osm::{BuildingRecord, OsmId, read_buildings, unpack, write_overpass_json};
 use std::collections::{BTreeMap, HashSet};
 use std::path::{Path, PathBuf};
 
@@ -119,6 +119,12 @@ async fn every_real_file_streams_into_exactly_the_data_tiles_the_whole_file_path
             assert_eq!(report.buildings, *buildings, "{label}");
             assert_eq!(report.skipped, 0, "{label}");
             assert_eq!(report.data_tiles, expected.len(), "{label}");
+            // The compact store: well under 250 bytes per building (578 as JSON before).
+            assert!(
+                report.stored_bytes <= 100 * report.buildings as u64,
+                "{label}: {} bytes",
+                report.stored_bytes
+            );
             let got = stored(&db).await;
             assert_eq!(
                 got.keys().collect::<Vec<_>>(),
@@ -135,6 +141,51 @@ async fn every_real_file_streams_into_exactly_the_data_tiles_the_whole_file_path
                 .collect();
             assert!(left.is_empty(), "{label}: {left:?}");
         }
+    }
+}
+
+#[tokio::test]
+async fn every_multipolygon_keeps_its_member_ways_in_each_of_its_data_tiles() {
+    // What a later change to a member way must find: the relation it draws. Kirchfeld's five
+    // building multipolygons and their way members, as `osmium tags-filter -R` lists them.
+    let expected: BTreeMap<i64, Vec<i64>> = [
+        (1776559, vec![241090748, 132344585]),
+        (3229490, vec![132367023, 239467076, 239467075]),
+        (9331926, vec![132344549, 670977182]),
+        (9331927, vec![670977188, 132344542]),
+        (11893189, vec![667906615, 871745678]),
+    ]
+    .into();
+    for file in [
+        "karlsruhe-kirchfeld.osm.pbf",
+        "karlsruhe-kirchfeld.overpass.json",
+    ] {
+        let dir = tempfile::tempdir().unwrap();
+        let db = sqlite(&dir.path().join("c.sqlite")).await;
+        import_with(&[osm(file)], &db, &options(16, dir.path()))
+            .await
+            .unwrap();
+        let store = OsmTileStore::new(db.clone());
+        let mut seen: BTreeMap<i64, Vec<i64>> = BTreeMap::new();
+        for t in store.stored_tiles().await.unwrap() {
+            let b = unpack(&store.get(&t).await.unwrap().unwrap().body).unwrap();
+            let relations: Vec<i64> = b
+                .buildings
+                .iter()
+                .filter_map(|r| match r.id {
+                    OsmId::Relation(id) => Some(id),
+                    OsmId::Way(_) => None,
+                })
+                .collect();
+            // Exactly the tile's multipolygons, each once, by id.
+            let listed: Vec<i64> = b.member_ways.iter().map(|m| m.relation).collect();
+            assert_eq!(listed, relations, "{file} {t:?}");
+            for m in b.member_ways {
+                let before = seen.insert(m.relation, m.ways.clone());
+                assert!(before.is_none_or(|w| w == m.ways), "{file} {t:?}");
+            }
+        }
+        assert_eq!(seen, expected, "{file}");
     }
 }
 

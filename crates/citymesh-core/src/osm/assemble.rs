@@ -187,12 +187,23 @@ pub struct Repaired {
     pub what: &'static str,
 }
 
+/// The ways a multipolygon building was drawn from (every way member, in member order): what a
+/// change to one of those ways must redraw, kept because the record's rings no longer say which
+/// ways they were joined from.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct MemberWays {
+    pub relation: i64,
+    pub ways: Vec<i64>,
+}
+
 /// The buildings of one OSM document.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct OsmBuildings {
     pub buildings: Vec<BuildingRecord>,
     pub skipped: Vec<Skipped>,
     pub repaired: Vec<Repaired>,
+    /// The member ways of each multipolygon in `buildings`, by relation id.
+    pub member_ways: Vec<MemberWays>,
 }
 
 /// The extent of the nodes of `ways` (by id) that the data has.
@@ -382,6 +393,15 @@ pub fn assemble(mut raw: RawOsm) -> OsmBuildings {
                         what: "missing_inner_ring",
                     });
                 }
+                out.member_ways.push(MemberWays {
+                    relation: rel.id,
+                    ways: rel
+                        .members
+                        .iter()
+                        .filter(|m| m.kind == MemberKind::Way)
+                        .map(|m| m.id)
+                        .collect(),
+                });
                 out.buildings.push(BuildingRecord {
                     id,
                     is_part,
@@ -461,6 +481,16 @@ pub fn assemble(mut raw: RawOsm) -> OsmBuildings {
     }
     out.buildings = kept;
     out.buildings.sort_by_key(|b| b.id);
+    let drawn: HashSet<i64> = out
+        .buildings
+        .iter()
+        .filter_map(|b| match b.id {
+            OsmId::Relation(id) => Some(id),
+            OsmId::Way(_) => None,
+        })
+        .collect();
+    out.member_ways.retain(|m| drawn.contains(&m.relation));
+    out.member_ways.sort_by_key(|m| m.relation);
     out.skipped.sort_by_key(|s| s.id);
     out.repaired.sort_by_key(|r| r.id);
     out

@@ -14,8 +14,8 @@ mod write;
 mod xml;
 
 pub use assemble::{
-    BuildingRecord, MAX_BUILDING_EXTENT_M, MAX_TAG_BYTES, OsmBuildings, OsmId, Repaired, Ring,
-    RingNode, SkipReason, Skipped, assemble, building_kind,
+    BuildingRecord, MAX_BUILDING_EXTENT_M, MAX_TAG_BYTES, MemberWays, OsmBuildings, OsmId,
+    Repaired, Ring, RingNode, SkipReason, Skipped, assemble, building_kind,
 };
 
 /// Whether a relation's tags make it a building multipolygon, whose member ways

@@ -10,7 +10,9 @@
 //!   the id, the numbers of outer and inner rings, each ring's nodes, the tags as pairs of
 //!   string indices;
 //! - the skipped buildings (id, reason, optional bounds as raw `f64`s) and the repaired ones
-//!   (id, what).
+//!   (id, what);
+//! - since version 2, the member ways of each multipolygon (relation id, count, way ids as
+//!   deltas), what a later change to one of those ways must redraw (version 1 has none).
 //!
 //! A ring node keeps its OSM node id (a delta from the previous id in the tile) and its
 //! coordinates as deltas of whole 1e-7 degrees from the previous node. Coordinates are kept
@@ -21,14 +23,14 @@
 
 use super::OsmError;
 use super::assemble::{
-    BuildingRecord, OsmBuildings, OsmId, Repaired, Ring, RingNode, SkipReason, Skipped,
+    BuildingRecord, MemberWays, OsmBuildings, OsmId, Repaired, Ring, RingNode, SkipReason, Skipped,
 };
 use foldhash::HashMap;
 
 /// The first bytes of a packed data tile.
 pub const PACKED_MAGIC: &[u8; 4] = b"CMPK";
 /// The version of the layout written (and the newest read).
-pub const PACKED_VERSION: u8 = 1;
+pub const PACKED_VERSION: u8 = 2;
 
 /// What [`Repaired::what`] can say, in the order packed.
 pub const REPAIRS: [&str; 2] = ["missing_inner_ring", "tag_too_long"];
@@ -184,14 +186,17 @@ pub fn pack(buildings: &OsmBuildings) -> Vec<u8> {
         &buildings.buildings.iter().collect::<Vec<_>>(),
         &buildings.skipped,
         &buildings.repaired,
+        &buildings.member_ways.iter().collect::<Vec<_>>(),
     )
 }
 
-/// Packs records (by reference), skipped and repaired buildings of one data tile.
+/// Packs records (by reference), skipped and repaired buildings and the member ways of the
+/// multipolygons of one data tile.
 pub fn pack_parts(
     records: &[&BuildingRecord],
     skipped: &[Skipped],
     repaired: &[Repaired],
+    member_ways: &[&MemberWays],
 ) -> Vec<u8> {
     let mut strings: Vec<&str> = Vec::new();
     let mut index: HashMap<&str, usize> = HashMap::default();
@@ -258,6 +263,18 @@ pub fn pack_parts(
         // Every `what` assemble writes is in the list (a test checks).
         let what = REPAIRS.iter().position(|x| *x == r.what).unwrap_or(0);
         w.out.push(what as u8);
+    }
+    w.len(member_ways.len());
+    let mut prev_relation = 0i64;
+    for m in member_ways {
+        w.int(m.relation.wrapping_sub(prev_relation));
+        prev_relation = m.relation;
+        w.len(m.ways.len());
+        let mut prev_way = 0i64;
+        for &way in &m.ways {
+            w.int(way.wrapping_sub(prev_way));
+            prev_way = way;
+        }
     }
     w.out
 }
@@ -376,9 +393,9 @@ pub fn unpack(bytes: &[u8]) -> Result<OsmBuildings, OsmError> {
         prev: [0, 0],
     };
     let version = r.byte()?;
-    if version != PACKED_VERSION {
+    if !(1..=PACKED_VERSION).contains(&version) {
         return Err(OsmError::Packed(format!(
-            "packed data tile of version {version}: this citymesh reads version {PACKED_VERSION}; \
+            "packed data tile of version {version}: this citymesh reads versions 1 to {PACKED_VERSION}; \
              run the citymesh that wrote it, or import the data again"
         )));
     }
@@ -450,6 +467,20 @@ pub fn unpack(bytes: &[u8]) -> Result<OsmBuildings, OsmError> {
             .get(usize::from(r.byte()?))
             .ok_or_else(|| corrupt("unknown repair"))?;
         out.repaired.push(Repaired { id, what });
+    }
+    if version >= 2 {
+        let mut relation = 0i64;
+        for _ in 0..r.count(2)? {
+            relation = relation.wrapping_add(r.int()?);
+            let n = r.count(1)?;
+            let mut ways = Vec::with_capacity(n);
+            let mut way = 0i64;
+            for _ in 0..n {
+                way = way.wrapping_add(r.int()?);
+                ways.push(way);
+            }
+            out.member_ways.push(MemberWays { relation, ways });
+        }
     }
     if r.at != bytes.len() {
         return Err(corrupt("bytes after its end"));
@@ -523,15 +554,19 @@ mod tests {
             id,
             what: REPAIRS[w],
         });
+        let member_ways = (any::<i64>(), proptest::collection::vec(any::<i64>(), 0..5))
+            .prop_map(|(relation, ways)| MemberWays { relation, ways });
         (
             proptest::collection::vec(record(), 0..8),
             proptest::collection::vec(skipped, 0..3),
             proptest::collection::vec(repaired, 0..3),
+            proptest::collection::vec(member_ways, 0..3),
         )
-            .prop_map(|(buildings, skipped, repaired)| OsmBuildings {
+            .prop_map(|(buildings, skipped, repaired, member_ways)| OsmBuildings {
                 buildings,
                 skipped,
                 repaired,
+                member_ways,
             })
     }
 
@@ -574,10 +609,31 @@ mod tests {
         packed[4] = PACKED_VERSION + 1;
         let e = unpack(&packed).unwrap_err().to_string();
         assert!(
-            e.contains("version 2") && e.contains("reads version 1"),
+            e.contains("version 3") && e.contains("reads versions 1 to 2"),
             "{e}"
         );
+        packed[4] = 0;
+        assert!(unpack(&packed).is_err());
         assert!(unpack(b"{\"elements\":[]}").is_err());
+    }
+
+    #[test]
+    fn a_version_1_tile_is_read_with_no_member_ways() {
+        // Version 1 ends after the repaired buildings: the same bytes less the member count.
+        let b = OsmBuildings {
+            repaired: vec![Repaired {
+                id: OsmId::Relation(5),
+                what: REPAIRS[0],
+            }],
+            ..Default::default()
+        };
+        let mut packed = pack(&b);
+        assert_eq!(packed.pop(), Some(0));
+        packed[4] = 1;
+        assert_eq!(unpack(&packed).unwrap(), b);
+        // A version 2 tile cut before its member ways is corrupt, not read as version 1.
+        packed[4] = 2;
+        assert!(unpack(&packed).is_err());
     }
 
     #[test]
@@ -604,10 +660,10 @@ mod tests {
         let packed = pack(&b);
         // Magic and version 5; strings 1 + 9 + 4; one record: count 1, flags, id and ring counts
         // 4, the ring's length and id mode 2; the first node 5 + 4 + 5 (deltas from zero), each
-        // other 1 + 2 + 1; tags 3; no skipped, no repaired 2.
+        // other 1 + 2 + 1; tags 3; no skipped, no repaired, no member ways 3.
         assert_eq!(
             packed.len(),
-            5 + 14 + 1 + 4 + 2 + 14 + 3 * 4 + 3 + 2,
+            5 + 14 + 1 + 4 + 2 + 14 + 3 * 4 + 3 + 3,
             "{packed:?}"
         );
         assert_eq!(unpack(&packed).unwrap(), b);

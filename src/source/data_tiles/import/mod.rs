@@ -27,7 +27,7 @@ use anyhow::Context;
 use citymesh_core::building::cluster::record_bounds;
 use citymesh_core::geo::{GeoBbox, TileCoord};
 use citymesh_core::osm::{
-    BuildingRecord, OsmBuildings, OsmFormat, pack_parts, read_buildings, unpack,
+    BuildingRecord, MemberWays, OsmBuildings, OsmFormat, OsmId, pack_parts, read_buildings, unpack,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 use pbf_stream::{PbfError, StreamLimits};
@@ -127,7 +127,8 @@ fn prepare(osm: OsmBuildings) -> Prepared {
         }
         let nw = TileCoord::containing(DATA_ZOOM, x0, y1);
         let se = TileCoord::containing(DATA_ZOOM, x1, y0);
-        let packed: std::sync::Arc<[u8]> = pack_parts(&[r], &[], &[]).into();
+        let members = member_ways_of(&osm.member_ways, r.id);
+        let packed: std::sync::Arc<[u8]> = pack_parts(&[r], &[], &[], members.as_slice()).into();
         for x in nw.x..=se.x {
             for y in nw.y..=se.y {
                 let home = x == nw.x && y == nw.y;
@@ -141,6 +142,17 @@ fn prepare(osm: OsmBuildings) -> Prepared {
         skipped: osm.skipped,
         records,
     }
+}
+
+/// The member ways of `id` when it is a multipolygon (`member_ways` sorted by relation).
+fn member_ways_of(member_ways: &[MemberWays], id: OsmId) -> Option<&MemberWays> {
+    let OsmId::Relation(relation) = id else {
+        return None;
+    };
+    member_ways
+        .binary_search_by_key(&relation, |m| m.relation)
+        .ok()
+        .map(|i| &member_ways[i])
 }
 
 /// Building records into the spill.
@@ -243,19 +255,25 @@ fn read_files(
 fn data_tile_of(records: Vec<Spilled>) -> anyhow::Result<(Vec<u8>, usize)> {
     let mut seen = HashSet::new();
     let mut kept: Vec<BuildingRecord> = Vec::with_capacity(records.len());
+    let mut member_ways = Vec::new();
     let mut homes = 0;
     for s in records {
         let mut osm = unpack(&s.bytes)?;
         for r in osm.buildings.drain(..) {
             if seen.insert(r.id) {
                 homes += usize::from(s.home);
+                if let Some(m) = member_ways_of(&osm.member_ways, r.id) {
+                    member_ways.push(m.clone());
+                }
                 kept.push(r);
             }
         }
     }
     kept.sort_by_key(|r| r.id);
+    member_ways.sort_by_key(|m| m.relation);
     let refs: Vec<&BuildingRecord> = kept.iter().collect();
-    Ok((pack_parts(&refs, &[], &[]), homes))
+    let member_refs: Vec<&MemberWays> = member_ways.iter().collect();
+    Ok((pack_parts(&refs, &[], &[], &member_refs), homes))
 }
 
 /// Imports the files into `store`.
