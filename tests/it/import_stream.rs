@@ -149,11 +149,11 @@ async fn every_multipolygon_keeps_its_member_ways_in_each_of_its_data_tiles() {
     // What a later change to a member way must find: the relation it draws. Kirchfeld's five
     // building multipolygons and their way members, as `osmium tags-filter -R` lists them.
     let expected: BTreeMap<i64, Vec<i64>> = [
-        (1776559, vec![241090748, 132344585]),
-        (3229490, vec![132367023, 239467076, 239467075]),
-        (9331926, vec![132344549, 670977182]),
-        (9331927, vec![670977188, 132344542]),
-        (11893189, vec![667906615, 871745678]),
+        (1_776_559, vec![241_090_748, 132_344_585]),
+        (3_229_490, vec![132_367_023, 239_467_076, 239_467_075]),
+        (9_331_926, vec![132_344_549, 670_977_182]),
+        (9_331_927, vec![670_977_188, 132_344_542]),
+        (11_893_189, vec![667_906_615, 871_745_678]),
     ]
     .into();
     for file in [
