@@ -68,6 +68,15 @@ async fn stored(db: &Database) -> BTreeMap<TileCoord, Vec<BuildingRecord>> {
     out
 }
 
+/// A SQLite store at `path` holding Nuremberg, the data a failed import must leave as it was.
+async fn nuremberg_store(path: &Path, temp: &Path) -> Database {
+    let db = sqlite(path).await;
+    import_with(&[osm("nuremberg-laufamholz.osm")], &db, &options(64, temp))
+        .await
+        .unwrap();
+    db
+}
+
 fn coordinate_bits(tiles: &BTreeMap<TileCoord, Vec<BuildingRecord>>) -> Vec<u64> {
     tiles
         .values()
@@ -269,15 +278,8 @@ async fn rows(db: &Database) -> Vec<(TileCoord, String)> {
 #[tokio::test]
 async fn bad_pbf_files_are_refused_by_name_and_leave_the_store_as_it_was() {
     let dir = tempfile::tempdir().unwrap();
-    let db = sqlite(&dir.path().join("c.sqlite")).await;
     // What is there before: Nuremberg.
-    import_with(
-        &[osm("nuremberg-laufamholz.osm")],
-        &db,
-        &options(64, dir.path()),
-    )
-    .await
-    .unwrap();
+    let db = nuremberg_store(&dir.path().join("c.sqlite"), dir.path()).await;
     let before = rows(&db).await;
     assert_eq!(before.len(), 1);
 
@@ -386,14 +388,7 @@ async fn bad_pbf_files_are_refused_by_name_and_leave_the_store_as_it_was() {
 async fn a_disk_that_fills_up_fails_the_import_by_name_and_leaves_the_store_as_it_was() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("c.sqlite");
-    let db = sqlite(&file).await;
-    import_with(
-        &[osm("nuremberg-laufamholz.osm")],
-        &db,
-        &options(64, dir.path()),
-    )
-    .await
-    .unwrap();
+    let db = nuremberg_store(&file, dir.path()).await;
     let before = rows(&db).await;
     if let Database::Sqlite(pool) = &db {
         pool.close().await;

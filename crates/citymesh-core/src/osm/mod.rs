@@ -24,6 +24,7 @@ pub fn is_building_multipolygon(tags: &Tags) -> bool {
     tags.get("type").map(String::as_str) == Some("multipolygon") && building_kind(tags).is_some()
 }
 pub use packed::{PACKED_VERSION, REPAIRS, is_packed, pack, pack_parts, unpack};
+pub use pbf::relation_members;
 pub use raw::{Member, MemberKind, RawOsm, RawRelation, RawWay, Tags};
 pub use write::write_overpass_json;
 

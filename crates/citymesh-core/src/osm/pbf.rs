@@ -4,6 +4,22 @@ use super::OsmError;
 use super::raw::{Member, MemberKind, RawOsm, RawRelation, RawWay};
 use osmpbf::{Element, ElementReader, RelMemberType};
 
+/// A PBF relation's members (node, way and relation members, with their roles).
+pub fn relation_members(r: &osmpbf::Relation<'_>) -> Vec<Member> {
+    r.members()
+        .map(|m| Member {
+            kind: match m.member_type {
+                RelMemberType::Node => MemberKind::Node,
+                RelMemberType::Way => MemberKind::Way,
+                RelMemberType::Relation => MemberKind::Relation,
+            },
+            id: m.member_id,
+            role: m.role().unwrap_or_default().to_owned(),
+            geometry: None,
+        })
+        .collect()
+}
+
 pub fn read(bytes: &[u8]) -> Result<RawOsm, OsmError> {
     let reader = ElementReader::new(std::io::Cursor::new(bytes));
     let mut raw = RawOsm::default();
@@ -24,22 +40,9 @@ pub fn read(bytes: &[u8]) -> Result<RawOsm, OsmError> {
                 tags: tags(w.tags()),
             }),
             Element::Relation(r) => {
-                let members = r
-                    .members()
-                    .map(|m| Member {
-                        kind: match m.member_type {
-                            RelMemberType::Node => MemberKind::Node,
-                            RelMemberType::Way => MemberKind::Way,
-                            RelMemberType::Relation => MemberKind::Relation,
-                        },
-                        id: m.member_id,
-                        role: m.role().unwrap_or_default().to_owned(),
-                        geometry: None,
-                    })
-                    .collect();
                 raw.relations.push(RawRelation {
                     id: r.id(),
-                    members,
+                    members: relation_members(&r),
                     tags: tags(r.tags()),
                 });
             }

@@ -16,11 +16,11 @@
 
 use super::node_index::{BlockCache, NodeIndexError, NodeIndexWriter, NodeLocations};
 use citymesh_core::osm::{
-    Member, MemberKind, OsmBuildings, RawOsm, RawRelation, RawWay, Tags, assemble, building_kind,
-    is_building_multipolygon,
+    MemberKind, OsmBuildings, RawOsm, RawRelation, RawWay, Tags, assemble, building_kind,
+    is_building_multipolygon, relation_members,
 };
 use foldhash::HashSet;
-use osmpbf::{Blob, BlobDecode, BlobReader, BlobType, ByteOffset, PrimitiveBlock, RelMemberType};
+use osmpbf::{Blob, BlobDecode, BlobReader, BlobType, ByteOffset, PrimitiveBlock};
 use std::collections::BTreeMap;
 use std::ops::ControlFlow;
 use std::path::Path;
@@ -159,19 +159,7 @@ fn read_relations(
             let t = tags(r.tags());
             let kept_relation = is_building_multipolygon(&t).then(|| RawRelation {
                 id: r.id(),
-                members: r
-                    .members()
-                    .map(|m| Member {
-                        kind: match m.member_type {
-                            RelMemberType::Node => MemberKind::Node,
-                            RelMemberType::Way => MemberKind::Way,
-                            RelMemberType::Relation => MemberKind::Relation,
-                        },
-                        id: m.member_id,
-                        role: m.role().unwrap_or_default().to_owned(),
-                        geometry: None,
-                    })
-                    .collect(),
+                members: relation_members(&r),
                 tags: t,
             });
             in_block.push((r.id(), kept_relation));
