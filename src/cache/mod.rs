@@ -20,6 +20,7 @@ mod roof_priors;
 mod scene_cache;
 mod store;
 mod summaries;
+pub(crate) use summaries::{summarise_data_tile, summarise_parent};
 mod tile_cache;
 
 pub use budget::MemoryBudget;

@@ -15,7 +15,9 @@ use super::TileCache;
 use crate::pipeline::Generator;
 use crate::source::SourceError;
 use citymesh_core::geo::{GeoBbox, TileCoord};
-use citymesh_core::tiles3d::{BLOCK_ZOOM, DATA_ZOOM, TileSummary, WorldTile, children_of};
+use citymesh_core::tiles3d::{
+    BLOCK_ZOOM, DATA_ZOOM, TileSummary, WorldTile, children_of, summary_tile,
+};
 use futures_util::StreamExt;
 use std::collections::{BTreeSet, HashMap};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -122,17 +124,7 @@ impl Summaries {
     /// its summary exists, below them when its data tile's does; in the covered area
     /// (`--world-area`) every tile exists, unfetched where no data is held under it.
     pub fn world_tile(&self, t: TileCoord) -> Option<WorldTile> {
-        let own = if t.z > DATA_ZOOM {
-            let shift = t.z - DATA_ZOOM;
-            TileCoord {
-                z: DATA_ZOOM,
-                x: t.x >> shift,
-                y: t.y >> shift,
-            }
-        } else {
-            t
-        };
-        let held = self.get(&own).map(|s| WorldTile::of(t, &s));
+        let held = self.get(&summary_tile(t)).map(|s| WorldTile::of(t, &s));
         let covered = self.area.filter(|a| t.bounds().overlaps(a));
         match (held, covered) {
             // A data tile held is fetched whole: no tile below it is unfetched.
@@ -282,7 +274,7 @@ async fn keep(store: &TileCache, made: &mut Vec<(TileCoord, Option<Arc<TileSumma
 
 /// The summary of one data tile: the one `kept` holds for this data version, else made from
 /// the source's buildings around it and the DEM. Says whether it was read from `kept`.
-async fn summarise_data_tile(
+pub(crate) async fn summarise_data_tile(
     generator: &Generator,
     t: TileCoord,
     kept: Option<&TileCache>,
@@ -309,7 +301,7 @@ async fn summarise_data_tile(
 
 /// The summary of a tile above the data tiles, from its children's (and the DEM under it when
 /// it draws blocks).
-async fn summarise_parent(
+pub(crate) async fn summarise_parent(
     generator: &Generator,
     t: TileCoord,
     children: Vec<Arc<TileSummary>>,

@@ -6,9 +6,12 @@ use clap::Parser;
 /// Options of `citymesh export`.
 #[derive(Debug, Clone, Parser)]
 pub struct ExportArgs {
-    /// The area as minLon,minLat,maxLon,maxLat (the 3D Tiles region; the XYZ tiles covering it).
+    /// Only this area, as minLon,minLat,maxLon,maxLat, of any size: for 3D Tiles the world tree
+    /// over the data tiles it meets, for XYZ the tiles covering it. Without it, everything the
+    /// data holds: the world tileset `/3dtiles/tileset.json` serves, or the XYZ tiles over
+    /// every data tile.
     #[arg(long)]
-    pub bbox: String,
+    pub bbox: Option<String>,
 
     /// Where to write the tree: a directory (created if missing) or `file://` URL, or an
     /// S3-compatible object store as `s3://BUCKET/PREFIX` (credentials, region and endpoint from
@@ -22,8 +25,9 @@ pub struct ExportArgs {
     #[arg(long, value_enum, default_value_t = ExportFormat::Tiles3d)]
     pub format: ExportFormat,
 
-    /// How a 3D Tiles tileset lists its tiles: `explicit` (every tile written out) or
-    /// `implicit` (a quadtree and its binary subtree), as `?tiling=` serves them.
+    /// How the 3D Tiles tileset lists its tiles: `explicit` only (the world tileset, in nested
+    /// tileset files; an implicit tileset of a box is served by
+    /// `/3dtiles/tileset.json?bbox=...&tiling=implicit`).
     #[arg(long, value_enum, default_value_t = TilingArg::Explicit)]
     pub tiling: TilingArg,
 
@@ -38,6 +42,16 @@ pub struct ExportArgs {
     /// Tiles generated at once (default: the machine's cores).
     #[arg(long)]
     pub workers: Option<usize>,
+
+    /// Seconds a unit of work stays this exporter's without word from it: another exporter on
+    /// the same database (`--database-url`) takes over a killed one's units after this long.
+    #[arg(long, default_value_t = 30.0)]
+    pub lease_s: f64,
+
+    /// Also write what the run did as JSON to this file (files, written, kept, scenes
+    /// generated, bytes, seconds).
+    #[arg(long)]
+    pub report: Option<std::path::PathBuf>,
 
     /// No progress bar or summary.
     #[arg(long)]
@@ -71,5 +85,14 @@ impl From<TilingArg> for citymesh_core::tiles3d::Tiling {
             TilingArg::Explicit => Self::Explicit,
             TilingArg::Implicit => Self::Implicit,
         }
+    }
+}
+
+impl ExportArgs {
+    /// `--workers`, else the machine's cores.
+    pub fn worker_count(&self) -> usize {
+        self.workers
+            .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, usize::from))
+            .max(1)
     }
 }

@@ -86,12 +86,16 @@ async fn run_async(command: Command) -> anyhow::Result<()> {
             }
             Ok(())
         }
-        Command::Export(args) => {
+        Command::Export(mut args) => {
+            // One generation slot per worker: an export waits for its own slots, never for
+            // `--generation-wait-ms`.
+            let workers = args.worker_count();
+            args.serve.max_generations = Some(workers);
             // A generator alone: no tile cache, listener or roof workers.
             let opened =
                 crate::server::open_generator(&args.serve, crate::clock::Clock::system(), "export")
                     .await?;
-            export::run(&opened.generator, &args).await?;
+            export::run(&opened, &args).await?;
             Ok(())
         }
         Command::Classify(args) => {

@@ -3,7 +3,7 @@
 //! `SceneRequest` on the blocking pool under the request timeout ([`limits`]), and returns bytes
 //! with their figures ([`scene`]); roofs chosen from the classifier's predictions or the roof
 //! prior come from [`roofs`]; the 3D Tiles tree's layout and subtree come from here too
-//! ([`tiles3d`]). It knows nothing of HTTP headers (`crate::routes` formats them) or of caching
+//! ([`tiles3d`]), and the world tileset's content ([`world`]). It knows nothing of HTTP headers (`crate::routes` formats them) or of caching
 //! (the routes ask `crate::cache` first and hand this pipeline to it on a miss).
 
 mod error;
@@ -12,6 +12,7 @@ mod limits;
 mod roofs;
 mod scene;
 mod tiles3d;
+pub mod world;
 
 pub use crate::generation_stats::GenerationStats;
 pub use error::PipelineError;

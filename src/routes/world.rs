@@ -9,20 +9,17 @@ use super::schemas::GlbBytes;
 use super::tiles3d::{CONTENT_ENCODING, TilesetQuery, content_query};
 use crate::cache::TileKey;
 use crate::error::{AppError, ErrorBody};
-use crate::pipeline::{Buildings, MeshOptions, generate};
-use crate::source::AreaBuildings;
+use crate::pipeline::world::{
+    FILE_PREFIX, ROOT_PREFIX, block_buildings, block_content, root_extras,
+};
 use crate::state::AppState;
 use axum::Json;
 use axum::extract::rejection::{PathRejection, QueryRejection};
 use axum::extract::{Path, Query, State};
 use axum::http::{HeaderMap, header};
 use axum::response::{IntoResponse, Response};
-use citymesh_core::building::set::BuildingSet;
 use citymesh_core::geo::TileCoord;
-use citymesh_core::scene::SceneArea;
 use citymesh_core::tiles3d::{DATA_ZOOM, LEAF_ZOOM, world_tileset_json};
-use serde_json::json;
-use std::sync::Arc;
 
 /// Content changes only when its data does: kept an hour, then revalidated with the ETag.
 const CONTENT_CACHE_CONTROL: &str = "public, max-age=3600";
@@ -35,7 +32,7 @@ pub async fn world_tileset(state: &AppState, query: &TilesetQuery) -> Result<Res
     tileset_file(
         state,
         TileCoord { z: 0, x: 0, y: 0 },
-        "world/",
+        ROOT_PREFIX,
         &content_query(query),
     )
 }
@@ -60,15 +57,12 @@ fn tileset_file(
             retry_after_secs: SUMMARIES_RETRY_SECS,
         });
     }
-    let progress = summaries.progress();
-    let extras = json!({
-        "citymesh": {
-            "dataTiles": progress.data_tiles,
-            "extent": summaries.get(&TileCoord { z: 0, x: 0, y: 0 }).map(|s| {
-                let r = s.region;
-                [r.west, r.south, r.east, r.north]
-            }),
-        }
+    // The root file says what the tree holds; the files below it only lead on.
+    let extras = (prefix == ROOT_PREFIX).then(|| {
+        root_extras(
+            summaries.progress().data_tiles,
+            summaries.get(&TileCoord { z: 0, x: 0, y: 0 }).as_deref(),
+        )
     });
     let json = world_tileset_json(top, &|t| summaries.world_tile(t), prefix, query, extras)
         .ok_or_else(|| {
@@ -145,7 +139,7 @@ pub async fn world_file(
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
     let (tile, ext) = parse_world(path)?;
     if ext == "json" {
-        return tileset_file(&state, tile, "../../", &content_query(&query));
+        return tileset_file(&state, tile, FILE_PREFIX, &content_query(&query));
     }
     let Some(listed) = state.summaries.world_tile(tile) else {
         return Err(if state.summaries.is_ready() {
@@ -195,29 +189,18 @@ async fn block_tile(
         .summaries
         .get(&tile)
         .ok_or_else(|| AppError::not_found("no_such_tile", "no data under this tile"))?;
-    let ground_cells = summary.ground_cells;
-    let gather = || async move {
-        let set = tokio::task::spawn_blocking(move || BuildingSet::new(summary.block_records()))
-            .await
-            .map_err(AppError::from)?;
-        Ok::<_, AppError>(AreaBuildings::given(Arc::new(set)))
-    };
+    let ground = summary.ground_cells;
     let (cached, level) = state
         .tiles
-        .get_or_generate(key, gather, |buildings| async {
-            let g = generate(
-                &state.generator,
-                SceneArea::Blocks {
-                    tile,
-                    ground: ground_cells,
-                },
-                Buildings::Loaded(buildings),
-                None,
-                MeshOptions::new(&state.generator, key.encoding),
-            )
-            .await?;
-            Ok::<_, AppError>((g.glb, g.stats))
-        })
+        .get_or_generate(
+            key,
+            || block_buildings(summary),
+            |buildings| async {
+                let g =
+                    block_content(&state.generator, tile, ground, buildings, key.encoding).await?;
+                Ok::<_, AppError>((g.glb, g.stats))
+            },
+        )
         .await?;
     super::conditional::cached_response(request_headers, cached, level, CONTENT_CACHE_CONTROL).await
 }

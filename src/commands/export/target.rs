@@ -75,6 +75,18 @@ impl ExportTarget {
         Ok(())
     }
 
+    /// What names the target the same in every exporter writing to it: an object store's URL,
+    /// a directory's absolute path.
+    pub fn identity(&self) -> String {
+        match self {
+            ExportTarget::Directory(dir) => std::fs::canonicalize(dir)
+                .unwrap_or_else(|_| dir.clone())
+                .display()
+                .to_string(),
+            ExportTarget::Objects { url, .. } => url.clone(),
+        }
+    }
+
     /// Whether the file at `key` (a relative path with `/`) is there, whole.
     pub async fn exists(&self, key: &str) -> anyhow::Result<bool> {
         match self {

@@ -19,4 +19,6 @@ pub use subtree::{
 pub use summary::{BLOCK_CELLS, BLOCK_ZOOM, Block, DATA_ZOOM, LEAF_ZOOM, TileSummary};
 pub use summary_bytes::SummaryBytesError;
 pub use tileset::{ImplicitLayout, Tiling, tileset_json};
-pub use world::{LEVELS_PER_FILE, WorldTile, children_of, next_file_zoom, world_tileset_json};
+pub use world::{
+    LEVELS_PER_FILE, WorldTile, children_of, next_file_zoom, summary_tile, world_tileset_json,
+};

@@ -145,6 +145,21 @@ impl WorldTile {
     }
 }
 
+/// The tile whose summary lists `t`: `t` itself at or above the data tiles, the data tile
+/// holding it below them.
+pub fn summary_tile(t: TileCoord) -> TileCoord {
+    if t.z > DATA_ZOOM {
+        let shift = t.z - DATA_ZOOM;
+        TileCoord {
+            z: DATA_ZOOM,
+            x: t.x >> shift,
+            y: t.y >> shift,
+        }
+    } else {
+        t
+    }
+}
+
 /// The four children of a tile, in the order tilesets list them.
 pub fn children_of(t: &TileCoord) -> [TileCoord; 4] {
     [(0, 0), (1, 0), (0, 1), (1, 1)].map(|(dx, dy)| TileCoord {
@@ -158,13 +173,13 @@ pub fn children_of(t: &TileCoord) -> [TileCoord; 4] {
 /// [`next_file_zoom`] with their content, then the next files' roots as external
 /// tilesets. `lookup` answers each tile that exists. `prefix` is put before every URI (the way
 /// from this file's folder to the tree's: `../../` for `world/{z}/{x}/{y}.json`), `query` after
-/// it. `None` when `top` does not exist.
+/// it; `extras` (the root file's) go in `asset`. `None` when `top` does not exist.
 pub fn world_tileset_json(
     top: TileCoord,
     lookup: &dyn Fn(TileCoord) -> Option<WorldTile>,
     prefix: &str,
     query: &str,
-    extras: Value,
+    extras: Option<Value>,
 ) -> Option<Value> {
     let query = if query.is_empty() {
         String::new()
@@ -177,12 +192,15 @@ pub fn world_tileset_json(
     root["refine"] = json!("REPLACE");
     let mut schema = BUILDING_CLASS.schema();
     schema["id"] = json!("citymesh_tileset");
+    let mut asset = json!({
+        "version": "1.1",
+        "generator": concat!("citymesh ", env!("CARGO_PKG_VERSION")),
+    });
+    if let Some(extras) = extras {
+        asset["extras"] = extras;
+    }
     Some(json!({
-        "asset": {
-            "version": "1.1",
-            "generator": concat!("citymesh ", env!("CARGO_PKG_VERSION")),
-            "extras": extras,
-        },
+        "asset": asset,
         "schema": schema,
         "geometricError": root_tile.geometric_error * 2.0,
         "root": root,
