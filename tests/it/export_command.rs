@@ -45,82 +45,6 @@ fn tree(dir: &Path) -> BTreeMap<String, Vec<u8>> {
 }
 
 #[test]
-fn an_export_killed_half_way_and_run_again_is_byte_identical_to_one_run() {
-    let dir = tempfile::tempdir().unwrap();
-    let (whole, resumed) = (dir.path().join("whole"), dir.path().join("resumed"));
-    let osm = "karlsruhe-kit-nord.osm.pbf";
-
-    // One uninterrupted run, on all cores.
-    let out = export(&whole, KIT_NORD, osm, &[]).output().unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        stdout.contains("exported 1366 files (1366 written now, 0 kept)"),
-        "{stdout}"
-    );
-    let expected = tree(&whole);
-    // 32 x 32 leaves of at most 400 m and the 341 coarser tiles above them, each with content,
-    // plus the tileset (explicit: no subtree).
-    assert_eq!(expected.len(), 1366);
-    assert!(expected.contains_key("content/0/0/0.glb"));
-    assert!(expected.contains_key("tileset.json"));
-    assert!(!expected.contains_key("subtrees/0/0/0.subtree"));
-    assert!(expected.contains_key("content/5/31/31.glb"));
-
-    // On one worker, killed (SIGKILL) once half the files are written.
-    let mut child = export(&resumed, KIT_NORD, osm, &["--workers", "1"])
-        .stdout(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let lines = BufReader::new(child.stdout.take().unwrap()).lines();
-    for line in lines {
-        let line = line.unwrap();
-        if line.contains("(50 %)") {
-            break;
-        }
-    }
-    child.kill().unwrap();
-    child.wait().unwrap();
-    let partial = tree(&resumed);
-    assert!(
-        !partial.contains_key("tileset.json") && partial.len() < 1366 && partial.len() >= 683,
-        "the kill came at {} files",
-        partial.len()
-    );
-
-    // The same command again finishes the rest, keeping what is there.
-    let out = export(&resumed, KIT_NORD, osm, &["--workers", "1"])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let kept = partial.keys().filter(|k| !k.ends_with(".partial")).count();
-    assert!(
-        stdout.contains(&format!(
-            "exported 1366 files ({} written now, {kept} kept)",
-            1366 - kept
-        )),
-        "{stdout}"
-    );
-    let got = tree(&resumed);
-    assert_eq!(
-        got.keys().collect::<Vec<_>>(),
-        expected.keys().collect::<Vec<_>>()
-    );
-    for (path, bytes) in &expected {
-        assert!(got[path] == *bytes, "{path} differs");
-    }
-}
-
-#[test]
 fn xyz_export_writes_the_tiles_the_server_serves() {
     let dir = tempfile::tempdir().unwrap();
     let bbox = "8.392,49.043,8.396,49.046";
@@ -156,39 +80,6 @@ fn xyz_export_writes_the_tiles_the_server_serves() {
 }
 
 #[test]
-fn an_implicit_export_carries_its_subtree_and_the_tileset_names_it() {
-    let dir = tempfile::tempdir().unwrap();
-    let bbox = "8.392,49.043,8.396,49.046";
-    let out = export(
-        dir.path(),
-        bbox,
-        "karlsruhe-kirchfeld.osm.pbf",
-        &["--tiling", "implicit", "--quiet"],
-    )
-    .output()
-    .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let files = tree(dir.path());
-    let tileset: serde_json::Value = serde_json::from_slice(&files["tileset.json"]).unwrap();
-    let implicit = &tileset["root"]["implicitTiling"];
-    assert_eq!(
-        implicit["subtrees"]["uri"],
-        "subtrees/{level}/{x}/{y}.subtree"
-    );
-    assert_eq!(&files["subtrees/0/0/0.subtree"][..4], b"subt");
-    // About 290 m x 330 m: one leaf level below the root, each tile with content.
-    let levels = implicit["availableLevels"].as_u64().unwrap();
-    let tiles: u64 = (0..levels).map(|l| 1 << (2 * l)).sum();
-    assert_eq!(levels, 1);
-    assert_eq!(files.len() as u64, tiles + 2);
-    assert!(files.contains_key("content/0/0/0.glb"));
-}
-
-#[test]
 fn a_wrong_export_says_what_to_fix() {
     let dir = tempfile::tempdir().unwrap();
     for (args, says) in [
@@ -197,6 +88,14 @@ fn a_wrong_export_says_what_to_fix() {
             "18 is above 16",
         ),
         (vec!["--format", "gltf"], "invalid value 'gltf'"),
+        (
+            vec!["--tiling", "implicit"],
+            "/3dtiles/tileset.json?bbox=...&tiling=implicit",
+        ),
+        (
+            vec!["--lease-s", "0"],
+            "--lease-s must be 1 to 86400 seconds",
+        ),
     ] {
         let out = export(dir.path(), KIT_NORD, "karlsruhe-kit-nord.osm.pbf", &args)
             .output()
@@ -210,17 +109,17 @@ fn a_wrong_export_says_what_to_fix() {
         .unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--bbox"));
-    // An output that cannot be written (here `content` is a file, as a full disk or a read-only
-    // mount would refuse): one line naming the file, never a backtrace, even when asked for.
+    // An output that cannot be written (here `world` is a file, as a read-only mount would
+    // refuse): one line naming the file, never a backtrace, even when asked for.
     let blocked = tempfile::tempdir().unwrap();
-    std::fs::write(blocked.path().join("content"), "in the way").unwrap();
+    std::fs::write(blocked.path().join("world"), "in the way").unwrap();
     let out = export(blocked.path(), KIT_NORD, "karlsruhe-kit-nord.osm.pbf", &[])
         .env("RUST_BACKTRACE", "1")
         .output()
         .unwrap();
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    let named = format!("writing {}", blocked.path().join("content").display());
+    let named = format!("writing {}", blocked.path().join("world").display());
     assert!(err.contains(&named), "{err}");
     assert!(
         !err.contains("backtrace") && !err.contains("Caused by"),
@@ -362,11 +261,11 @@ fn an_export_to_an_s3_store_equals_the_directory_export_and_resumes() {
     let files = tree(dir.path());
     let n = files.len();
     assert!(
-        local.contains(&format!("exported {n} files ({n} written now, 0 kept)")),
+        local.contains(&format!("({n} written now, 0 kept")),
         "{local}"
     );
     assert!(
-        remote.contains(&format!("exported {n} files ({n} written now, 0 kept)")),
+        remote.contains(&format!("({n} written now, 0 kept")),
         "{remote}"
     );
     // The same files, byte for byte, under the prefix.
@@ -374,18 +273,19 @@ fn an_export_to_an_s3_store_equals_the_directory_export_and_resumes() {
     // A rerun writes nothing; one with a tile and the tileset gone writes those two.
     let again = run("s3://tiles/karlsruhe/3d");
     assert!(
-        again.contains(&format!("({} written now, {n} kept)", 0)),
+        again.contains(&format!("(0 written now, {n} kept")),
         "{again}"
     );
     let rt = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
         .unwrap();
+    let leaf = files.keys().find(|k| k.starts_with("world/15/")).unwrap();
     rt.block_on(async {
         use object_store::ObjectStore;
         for key in [
-            "karlsruhe/3d/tileset.json",
-            "karlsruhe/3d/content/0/0/0.glb",
+            "karlsruhe/3d/tileset.json".to_owned(),
+            format!("karlsruhe/3d/{leaf}"),
         ] {
             store
                 .delete(&object_store::path::Path::from(key))
@@ -395,7 +295,7 @@ fn an_export_to_an_s3_store_equals_the_directory_export_and_resumes() {
     });
     let resumed = run("s3://tiles/karlsruhe/3d");
     assert!(
-        resumed.contains(&format!("(2 written now, {} kept)", n - 2)),
+        resumed.contains(&format!("(2 written now, {} kept", n - 2)),
         "{resumed}"
     );
     assert_eq!(objects(&store, "karlsruhe/3d"), files);
@@ -428,29 +328,320 @@ fn every_vertex_of_a_kirchfeld_export_lies_inside_its_tiles_region() {
         String::from_utf8_lossy(&out.stderr)
     );
     let files = tree(dir.path());
-    let tileset: serde_json::Value = serde_json::from_slice(&files["tileset.json"]).unwrap();
-    let mut stack = vec![&tileset["root"]];
-    let (mut tiles, mut vertices, mut rows) = (0, 0, 0);
-    while let Some(tile) = stack.pop() {
-        stack.extend(tile["children"].as_array().into_iter().flatten());
-        let Some(uri) = tile["content"]["uri"].as_str() else {
-            continue;
-        };
-        let r: Vec<f64> = tile["boundingVolume"]["region"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|v| v.as_f64().unwrap())
-            .collect();
-        let glb = files
-            .get(uri)
-            .unwrap_or_else(|| panic!("{uri} is listed but not exported"));
-        tiles += 1;
-        rows += common::decode::feature_rows(glb).len();
-        vertices += common::decode::assert_inside_region(glb, &r, uri);
+    let (mut tiles, mut vertices, mut rows, mut tilesets) = (0, 0, 0, 0);
+    let mut files_to_read = vec!["tileset.json".to_owned()];
+    while let Some(file) = files_to_read.pop() {
+        tilesets += 1;
+        let tileset: serde_json::Value = serde_json::from_slice(&files[&file]).unwrap();
+        let mut stack = vec![tileset["root"].clone()];
+        while let Some(tile) = stack.pop() {
+            stack.extend(tile["children"].as_array().into_iter().flatten().cloned());
+            let Some(uri) = tile["content"]["uri"].as_str() else {
+                continue;
+            };
+            let path = resolve(&file, uri);
+            if path.ends_with(".json") {
+                files_to_read.push(path);
+                continue;
+            }
+            let r: Vec<f64> = tile["boundingVolume"]["region"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_f64().unwrap())
+                .collect();
+            let glb = files
+                .get(&path)
+                .unwrap_or_else(|| panic!("{path} is listed but not exported"));
+            tiles += 1;
+            rows += common::decode::feature_rows(glb).len();
+            vertices += common::decode::assert_inside_region(glb, &r, &path);
+        }
     }
     println!("{tiles} content tiles, {vertices} vertices, {rows} building rows");
-    // Every file but the tileset is a listed tile's content.
-    assert_eq!(tiles, files.len() - 1);
+    // Every file is a tileset file reached from the root or a listed tile's content.
+    assert_eq!(tiles + tilesets, files.len());
     assert!(vertices > 0 && rows > 0);
+}
+
+/// The way from tileset file `base` to `uri` (relative, with `..`).
+fn resolve(base: &str, uri: &str) -> String {
+    let mut parts: Vec<&str> = base.split('/').collect();
+    parts.pop();
+    for p in uri.split('/') {
+        match p {
+            ".." => {
+                parts.pop();
+            }
+            p => parts.push(p),
+        }
+    }
+    parts.join("/")
+}
+
+/// `citymesh export` of everything `osm` holds, its units kept in `state` (a SQLite file).
+fn export_all(out: &str, osm: &str, state: &Path, extra: &[&str]) -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_citymesh"));
+    c.args(["export", "--out", out, "--osm"])
+        .arg(data_dir().join("osm").join(osm))
+        .arg("--dem-dir")
+        .arg(dem_dir())
+        .arg("--cache-db")
+        .arg(state)
+        .args(["--log-level", "warn"])
+        .args(extra);
+    c
+}
+
+/// Runs `c` to its end, which must be a success; answers its `--report` (written to `report`).
+fn run_reported(c: &mut Command, report: &Path) -> serde_json::Value {
+    let out = c.arg("--report").arg(report).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&std::fs::read(report).unwrap()).unwrap()
+}
+
+fn glb_count(files: &BTreeMap<String, Vec<u8>>) -> u64 {
+    files.keys().filter(|k| k.ends_with(".glb")).count() as u64
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_whole_export_is_the_world_tileset_the_server_serves_byte_for_byte() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("tree");
+    let report = run_reported(
+        &mut export_all(
+            out.to_str().unwrap(),
+            "karlsruhe-kirchfeld.osm.pbf",
+            &dir.path().join("state.sqlite"),
+            &["--quiet"],
+        ),
+        &dir.path().join("report.json"),
+    );
+    let files = tree(&out);
+    // Kirchfeld's 4 data tiles: 16 leaves, blocks at zooms 14 (4), 13 (2), 12, 11, 10 and 9
+    // (1 each), and the tileset files of zooms 12, 9, 6 and 3 below the root.
+    assert_eq!(files.len(), 31);
+    assert_eq!(glb_count(&files), 26);
+    assert_eq!(report["files"], 31);
+    assert_eq!(report["written"], 31);
+    // Every scene once: one per content file, nothing generated to measure the tree.
+    assert_eq!(report["generated"], 26);
+    assert_eq!(report["units"], 5);
+
+    // The server over the same file answers every path with the same bytes, and its tree
+    // names no file the export lacks.
+    let db = tempfile::tempdir().unwrap();
+    let state = common::kirchfeld_state(&db).await;
+    let app = common::app_of(state.clone());
+    common::world_ready(&state).await;
+    let mut listed = std::collections::BTreeSet::new();
+    let mut to_read = vec!["tileset.json".to_owned()];
+    while let Some(file) = to_read.pop() {
+        listed.insert(file.clone());
+        let served: serde_json::Value = common::get(&app, &format!("/3dtiles/{file}")).await.json();
+        let mut stack = vec![served["root"].clone()];
+        while let Some(tile) = stack.pop() {
+            stack.extend(tile["children"].as_array().into_iter().flatten().cloned());
+            if let Some(uri) = tile["content"]["uri"].as_str() {
+                let path = resolve(&file, uri);
+                if path.ends_with(".json") {
+                    to_read.push(path.clone());
+                }
+                listed.insert(path);
+            }
+        }
+    }
+    assert_eq!(
+        listed.iter().collect::<Vec<_>>(),
+        files.keys().collect::<Vec<_>>()
+    );
+    for (path, bytes) in &files {
+        let served = common::get(&app, &format!("/3dtiles/{path}")).await;
+        assert_eq!(served.status, 200, "{path}");
+        assert!(
+            served.body == *bytes,
+            "{path} differs from what the server serves"
+        );
+    }
+    // Only the root file says what the tree holds.
+    let root: serde_json::Value = serde_json::from_slice(&files["tileset.json"]).unwrap();
+    assert_eq!(root["asset"]["extras"]["citymesh"]["dataTiles"], 4);
+    let below: serde_json::Value =
+        serde_json::from_slice(&files["world/12/2143/1405.json"]).unwrap();
+    assert!(below["asset"].get("extras").is_none());
+}
+
+#[test]
+fn an_export_killed_half_way_and_run_again_is_byte_identical_and_generates_each_scene_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let osm = "karlsruhe-kit-nord.osm.pbf";
+    let (whole, resumed) = (dir.path().join("whole"), dir.path().join("resumed"));
+
+    // One uninterrupted run, on all cores.
+    let report = run_reported(
+        &mut export_all(
+            whole.to_str().unwrap(),
+            osm,
+            &dir.path().join("whole.sqlite"),
+            &["--quiet"],
+        ),
+        &dir.path().join("whole.json"),
+    );
+    let expected = tree(&whole);
+    let (files, glbs) = (expected.len() as u64, glb_count(&expected));
+    assert_eq!(report["files"], files);
+    assert_eq!(report["written"], files);
+    assert_eq!(report["generated"], glbs);
+    assert!(expected.contains_key("tileset.json"));
+
+    // On one worker, killed (SIGKILL) once half the files are done.
+    let state = dir.path().join("resumed.sqlite");
+    let mut child = export_all(resumed.to_str().unwrap(), osm, &state, &["--workers", "1"])
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    for line in BufReader::new(child.stdout.take().unwrap()).lines() {
+        let line = line.unwrap();
+        let percent: Option<u64> = line
+            .split(" (")
+            .nth(1)
+            .and_then(|r| r.split(" %").next())
+            .and_then(|p| p.parse().ok());
+        if percent.is_some_and(|p| p >= 50) {
+            break;
+        }
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let partial = tree(&resumed);
+    assert!(
+        !partial.contains_key("tileset.json") && (partial.len() as u64) < files,
+        "the kill came at {} of {files} files",
+        partial.len()
+    );
+    assert!(
+        !partial.keys().any(|k| k.ends_with(".partial")) || partial.len() > 1,
+        "a temporary file at most"
+    );
+    let kept = partial.keys().filter(|k| !k.ends_with(".partial")).count() as u64;
+    let kept_glbs = partial.keys().filter(|k| k.ends_with(".glb")).count() as u64;
+
+    // The same command again finishes the rest: it takes the killed run's units once their
+    // lease ends, keeps every file there, and generates exactly the scenes missing.
+    let report = run_reported(
+        &mut export_all(
+            resumed.to_str().unwrap(),
+            osm,
+            &state,
+            &["--workers", "1", "--lease-s", "1", "--quiet"],
+        ),
+        &dir.path().join("resumed.json"),
+    );
+    // Units done are not opened again; the killed run's unfinished units keep their files.
+    assert!(report["kept"].as_u64().unwrap() < kept, "{report}");
+    assert_eq!(report["written"], files - kept);
+    assert_eq!(report["generated"], glbs - kept_glbs);
+    let got = tree(&resumed);
+    assert_eq!(
+        got.keys().collect::<Vec<_>>(),
+        expected.keys().collect::<Vec<_>>()
+    );
+    for (path, bytes) in &expected {
+        assert!(got[path] == *bytes, "{path} differs");
+    }
+    // Run again when finished: nothing is generated or written.
+    let again = run_reported(
+        &mut export_all(resumed.to_str().unwrap(), osm, &state, &["--quiet"]),
+        &dir.path().join("again.json"),
+    );
+    assert_eq!(again["generated"], 0);
+    assert_eq!(again["written"], 0);
+    assert_eq!(again["units"], 0);
+}
+
+/// A tmpfs mounted on a folder of its own, unmounted on drop.
+struct SmallDisk {
+    dir: tempfile::TempDir,
+}
+
+impl SmallDisk {
+    fn mount(bytes: u64) -> Self {
+        let dir = tempfile::tempdir().unwrap();
+        let ok = Command::new("mount")
+            .args(["-t", "tmpfs", "-o", &format!("size={bytes}"), "tmpfs"])
+            .arg(dir.path())
+            .status()
+            .unwrap()
+            .success();
+        assert!(
+            ok,
+            "cannot mount a tmpfs (the tests run as root, as scripts/test does)"
+        );
+        Self { dir }
+    }
+
+    fn grow(&self, bytes: u64) {
+        let ok = Command::new("mount")
+            .args(["-o", &format!("remount,size={bytes}")])
+            .arg(self.dir.path())
+            .status()
+            .unwrap()
+            .success();
+        assert!(ok);
+    }
+}
+
+impl Drop for SmallDisk {
+    fn drop(&mut self) {
+        let _ = Command::new("umount").arg(self.dir.path()).status();
+    }
+}
+
+#[test]
+fn a_full_disk_stops_the_export_naming_the_file_and_a_rerun_finishes_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let osm = "karlsruhe-kirchfeld.osm.pbf";
+    let whole = dir.path().join("whole");
+    run_reported(
+        &mut export_all(
+            whole.to_str().unwrap(),
+            osm,
+            &dir.path().join("whole.sqlite"),
+            &["--quiet"],
+        ),
+        &dir.path().join("whole.json"),
+    );
+    let expected = tree(&whole);
+    // The tree takes 1.7 MB; the disk holds 1 MB.
+    let disk = SmallDisk::mount(1 << 20);
+    let out = disk.dir.path().join("tree");
+    let state = dir.path().join("state.sqlite");
+    let failed = export_all(out.to_str().unwrap(), osm, &state, &["--quiet"])
+        .output()
+        .unwrap();
+    assert!(!failed.status.success());
+    let err = String::from_utf8_lossy(&failed.stderr);
+    assert!(err.contains(&format!("--out {}", out.display())), "{err}");
+    assert!(err.contains("No space left on device"), "{err}");
+    let partial = tree(&out);
+    assert!(!partial.contains_key("tileset.json"));
+    assert!(
+        !partial.keys().any(|k| k.ends_with(".partial")),
+        "nothing half written stays"
+    );
+    for (path, bytes) in &partial {
+        assert!(expected[path] == *bytes, "{path} is not whole");
+    }
+    // Space freed: the same command finishes, at once (the failed run gave its units back).
+    disk.grow(16 << 20);
+    let report = run_reported(
+        &mut export_all(out.to_str().unwrap(), osm, &state, &["--quiet"]),
+        &dir.path().join("rerun.json"),
+    );
+    assert_eq!(report["kept"], partial.len() as u64);
+    assert_eq!(tree(&out), expected);
 }

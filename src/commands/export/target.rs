@@ -159,7 +159,23 @@ fn write_whole(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     }
     let mut partial = path.as_os_str().to_owned();
     partial.push(PARTIAL);
-    std::fs::write(&partial, bytes)?;
+    let written = std::fs::write(&partial, bytes).and_then(|()| {
+        // A file system that took fewer bytes than given without an error is refused too.
+        let size = std::fs::metadata(&partial)?.len();
+        if size == bytes.len() as u64 {
+            Ok(())
+        } else {
+            Err(std::io::Error::other(format!(
+                "{size} of {} bytes were written",
+                bytes.len()
+            )))
+        }
+    });
+    if let Err(e) = written {
+        // Nothing half written stays behind (a full disk gets its space back).
+        let _ = std::fs::remove_file(&partial);
+        return Err(e);
+    }
     std::fs::rename(&partial, path)
 }
 
