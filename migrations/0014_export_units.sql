@@ -18,6 +18,8 @@ CREATE TABLE export_units (
     state       TEXT    NOT NULL DEFAULT 'pending',
     claim       INTEGER,
     lease_until INTEGER,
+    -- Claims taken of it: more than one when an exporter died holding it, or stopped.
+    attempts    INTEGER NOT NULL DEFAULT 0,
     files_est   INTEGER NOT NULL,
     files       INTEGER,
     summary     BLOB,

@@ -15,6 +15,8 @@ CREATE TABLE export_units (
     state       TEXT   NOT NULL DEFAULT 'pending',
     claim       BIGINT,
     lease_until BIGINT,
+    -- Claims taken of it: more than one when an exporter died holding it, or stopped.
+    attempts    BIGINT NOT NULL DEFAULT 0,
     files_est   BIGINT NOT NULL,
     files       BIGINT,
     summary     BYTEA,

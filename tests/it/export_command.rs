@@ -131,6 +131,8 @@ fn a_wrong_export_says_what_to_fix() {
 struct S3Server {
     child: std::process::Child,
     endpoint: String,
+    /// Its working folder, where its request recorder writes.
+    _dir: tempfile::TempDir,
 }
 
 impl Drop for S3Server {
@@ -157,8 +159,10 @@ fn start_s3() -> S3Server {
         .local_addr()
         .unwrap()
         .port();
+    let dir = tempfile::tempdir().unwrap();
     let child = Command::new(&moto)
         .args(["-H", "127.0.0.1", "-p", &port.to_string()])
+        .current_dir(dir.path())
         .stdout(Stdio::null())
         .stderr(Stdio::null())
         .spawn()
@@ -166,6 +170,7 @@ fn start_s3() -> S3Server {
     let server = S3Server {
         child,
         endpoint: format!("http://127.0.0.1:{port}"),
+        _dir: dir,
     };
     for _ in 0..300 {
         if std::net::TcpStream::connect(("127.0.0.1", port)).is_ok() {
@@ -545,6 +550,7 @@ fn an_export_killed_half_way_and_run_again_is_byte_identical_and_generates_each_
     assert!(report["kept"].as_u64().unwrap() < kept, "{report}");
     assert_eq!(report["written"], files - kept);
     assert_eq!(report["generated"], glbs - kept_glbs);
+    assert!(report["taken_over"].as_u64().unwrap() >= 1, "{report}");
     let got = tree(&resumed);
     assert_eq!(
         got.keys().collect::<Vec<_>>(),
@@ -644,4 +650,145 @@ fn a_full_disk_stops_the_export_naming_the_file_and_a_rerun_finishes_it() {
     );
     assert_eq!(report["kept"], partial.len() as u64);
     assert_eq!(tree(&out), expected);
+}
+
+/// What the test's S3 server was asked since recording started: (method, path) of each request.
+fn recorded(s3: &S3Server) -> Vec<(String, String)> {
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    let text = rt.block_on(async {
+        reqwest::get(format!(
+            "{}/moto-api/recorder/download-recording",
+            s3.endpoint
+        ))
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap()
+    });
+    // One JSON object per request, not always a line each.
+    serde_json::Deserializer::from_str(&text)
+        .into_iter::<serde_json::Value>()
+        .map(|v| {
+            let v = v.unwrap();
+            let url = v["url"].as_str().unwrap();
+            let path = url.split_once("://").map_or(url, |(_, r)| r);
+            let path = &path[path.find('/').unwrap_or(0)..];
+            let path = path.split('?').next().unwrap().to_owned();
+            (v["method"].as_str().unwrap().to_owned(), path)
+        })
+        .collect()
+}
+
+#[test]
+fn two_exporters_on_one_postgres_share_an_s3_export_and_one_killed_is_taken_over() {
+    let osm = "karlsruhe-kit-nord.osm.pbf";
+    let dir = tempfile::tempdir().unwrap();
+    // The same export by one process, to a directory.
+    let single = dir.path().join("single");
+    run_reported(
+        &mut export_all(
+            single.to_str().unwrap(),
+            osm,
+            &dir.path().join("single.sqlite"),
+            &["--quiet"],
+        ),
+        &dir.path().join("single.json"),
+    );
+    let expected = tree(&single);
+
+    let pg = common::postgres::Postgres::start();
+    let s3 = start_s3();
+    let store = bucket(&s3, "tiles");
+    let start = reqwest_post(&format!(
+        "{}/moto-api/recorder/start-recording",
+        s3.endpoint
+    ));
+    assert!(start.contains("True"), "{start}");
+    let worker = |quiet: bool| {
+        let mut c = export_all(
+            "s3://tiles/world",
+            osm,
+            &dir.path().join("unused.sqlite"),
+            &[
+                "--database-url",
+                &pg.url,
+                "--workers",
+                "1",
+                "--lease-s",
+                "2",
+            ],
+        );
+        if quiet {
+            c.arg("--quiet");
+        }
+        c.env("AWS_ENDPOINT_URL", &s3.endpoint)
+            .env("AWS_ALLOW_HTTP", "true")
+            .env("AWS_REGION", "us-east-1")
+            .env("AWS_ACCESS_KEY_ID", "test")
+            .env("AWS_SECRET_ACCESS_KEY", "test");
+        c
+    };
+    let mut killed = worker(false).stdout(Stdio::piped()).spawn().unwrap();
+    let report = dir.path().join("survivor.json");
+    let mut survivor = worker(true).arg("--report").arg(&report).spawn().unwrap();
+    // Killed (SIGKILL) once the export has a unit done, with units of its own under way.
+    let mut lines = BufReader::new(killed.stdout.take().unwrap()).lines();
+    let first = lines.next().unwrap().unwrap();
+    assert!(first.contains(" files ("), "{first}");
+    killed.kill().unwrap();
+    killed.wait().unwrap();
+    assert!(survivor.wait().unwrap().success());
+    let survived: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+
+    // The union is the single process's tree, byte for byte.
+    let got = objects(&store, "world");
+    assert_eq!(got.len(), expected.len());
+    assert!(
+        got == expected,
+        "the shared export differs from the single one"
+    );
+    // Every object was written once, by one exporter or the other.
+    let mut puts: BTreeMap<String, u32> = BTreeMap::new();
+    for (method, path) in recorded(&s3) {
+        if method == "PUT"
+            && let Some(key) = path.strip_prefix("/tiles/world/")
+        {
+            *puts.entry(key.to_owned()).or_default() += 1;
+        }
+    }
+    assert_eq!(puts.len(), expected.len());
+    let twice: Vec<_> = puts.iter().filter(|(_, n)| **n != 1).collect();
+    assert!(twice.is_empty(), "written more than once: {twice:?}");
+    // The killed one wrote its share before it died; the survivor wrote the rest.
+    let by_survivor = survived["written"].as_u64().unwrap();
+    assert!(
+        by_survivor < expected.len() as u64,
+        "the killed exporter wrote nothing: {survived}"
+    );
+    assert_eq!(survived["files"], expected.len() as u64);
+    // It died holding units: the survivor took them over once their lease ran out.
+    assert!(survived["taken_over"].as_u64().unwrap() >= 1, "{survived}");
+}
+
+/// POSTs nothing to `url`; answers the body.
+fn reqwest_post(url: &str) -> String {
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    rt.block_on(async {
+        reqwest::Client::new()
+            .post(url)
+            .send()
+            .await
+            .unwrap()
+            .text()
+            .await
+            .unwrap()
+    })
 }

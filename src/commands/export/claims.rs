@@ -20,6 +20,8 @@ pub struct Claimed {
     pub id: i64,
     pub tile: TileCoord,
     pub claim: i64,
+    /// Another claim held it before (an exporter died holding it, or gave it back).
+    pub again: bool,
 }
 
 /// How far the export as a whole is, over every exporter.
@@ -47,10 +49,10 @@ const INSERT_EXPORT: &str = "INSERT INTO exports (export, describe, units, creat
 const EXPORT_UNITS: &str = "SELECT units FROM exports WHERE export = $1";
 
 const SQLITE_CLAIM: &str = "UPDATE export_units SET state = 'running', claim = $1, \
-    lease_until = $2 WHERE export = $3 AND id = (SELECT u.id FROM export_units u \
+    lease_until = $2, attempts = attempts + 1 WHERE export = $3 AND id = (SELECT u.id FROM export_units u \
     WHERE u.export = $3 AND (u.state = 'pending' OR (u.state = 'running' AND u.lease_until < $4)) \
     AND NOT EXISTS (SELECT 1 FROM export_units c WHERE c.export = $3 AND c.parent = u.id \
-    AND c.state <> 'done') ORDER BY u.id LIMIT 1) RETURNING id, z, x, y";
+    AND c.state <> 'done') ORDER BY u.id LIMIT 1) RETURNING id, z, x, y, attempts";
 
 /// PostgreSQL picks with `SKIP LOCKED`: two exporters never take the same unit, and neither
 /// waits for the other.
@@ -58,8 +60,9 @@ const POSTGRES_CLAIM: &str = "WITH picked AS (SELECT u.id FROM export_units u \
     WHERE u.export = $3 AND (u.state = 'pending' OR (u.state = 'running' AND u.lease_until < $4)) \
     AND NOT EXISTS (SELECT 1 FROM export_units c WHERE c.export = $3 AND c.parent = u.id \
     AND c.state <> 'done') ORDER BY u.id LIMIT 1 FOR UPDATE OF u SKIP LOCKED) \
-    UPDATE export_units e SET state = 'running', claim = $1, lease_until = $2 FROM picked \
-    WHERE e.export = $3 AND e.id = picked.id RETURNING e.id, e.z, e.x, e.y";
+    UPDATE export_units e SET state = 'running', claim = $1, lease_until = $2, \
+    attempts = e.attempts + 1 FROM picked WHERE e.export = $3 AND e.id = picked.id \
+    RETURNING e.id, e.z, e.x, e.y, e.attempts";
 
 const EXTEND: &str = "UPDATE export_units SET lease_until = $1 WHERE export = $2 AND id = $3 \
     AND claim = $4 AND state = 'running'";
@@ -73,10 +76,11 @@ const RELEASE: &str = "UPDATE export_units SET state = 'pending', lease_until = 
 const RESET: &str = "UPDATE export_units SET state = 'pending', lease_until = NULL, \
     claim = NULL, files = NULL, summary = NULL WHERE export = $1 AND id = $2";
 
+/// Sums cast to BIGINT: PostgreSQL sums BIGINT as NUMERIC.
 const PROGRESS: &str = "SELECT \
-    COALESCE(SUM(CASE WHEN state = 'done' THEN files ELSE 0 END), 0), \
-    COALESCE(SUM(CASE WHEN state = 'done' THEN files ELSE files_est END), 0), \
-    COALESCE(SUM(CASE WHEN state = 'done' THEN 1 ELSE 0 END), 0), COUNT(*) \
+    CAST(COALESCE(SUM(CASE WHEN state = 'done' THEN files ELSE 0 END), 0) AS BIGINT), \
+    CAST(COALESCE(SUM(CASE WHEN state = 'done' THEN files ELSE files_est END), 0) AS BIGINT), \
+    CAST(COALESCE(SUM(CASE WHEN state = 'done' THEN 1 ELSE 0 END), 0) AS BIGINT), COUNT(*) \
     FROM export_units WHERE export = $1";
 
 const CHILDREN: &str = "SELECT z, x, y, summary FROM export_units WHERE export = $1 \
@@ -209,7 +213,7 @@ impl Claims {
                     .bind(now)
                     .fetch_optional(pool)
                     .await?;
-                row.map(|r| Ok::<_, sqlx::Error>((r.int(0)?, tile_of(&r)?)))
+                row.map(|r| Ok::<_, sqlx::Error>((r.int(0)?, tile_of(&r)?, r.int(4)?)))
                     .transpose()?
             }
             Database::Postgres(pool) => {
@@ -220,11 +224,16 @@ impl Claims {
                     .bind(now)
                     .fetch_optional(pool)
                     .await?;
-                row.map(|r| Ok::<_, sqlx::Error>((r.int(0)?, tile_of(&r)?)))
+                row.map(|r| Ok::<_, sqlx::Error>((r.int(0)?, tile_of(&r)?, r.int(4)?)))
                     .transpose()?
             }
         };
-        Ok(claimed.map(|(id, tile)| Claimed { id, tile, claim }))
+        Ok(claimed.map(|(id, tile, attempts)| Claimed {
+            id,
+            tile,
+            claim,
+            again: attempts > 1,
+        }))
     }
 
     /// Extends the lease of a unit still held; `false` when another exporter took it over.

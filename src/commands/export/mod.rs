@@ -52,6 +52,9 @@ pub struct ExportSummary {
     pub generated: u64,
     /// Units of work this run did.
     pub units: u64,
+    /// Of those, units an earlier claim held (an exporter killed holding them, or stopped by an
+    /// error): taken over.
+    pub taken_over: u64,
     /// Bytes of the finished tree.
     pub bytes: u64,
     /// Wall time of the run, in milliseconds.
@@ -78,6 +81,8 @@ pub(crate) struct Exporter<'a> {
     /// Files written and kept by this run.
     written: AtomicU64,
     kept: AtomicU64,
+    /// Units this run took over from an earlier claim.
+    taken_over: AtomicU64,
     /// Files finished in units of this run not yet marked done.
     running_files: AtomicU64,
     bar: ProgressBar,
@@ -180,6 +185,7 @@ pub async fn run(opened: &OpenedGenerator, args: &ExportArgs) -> anyhow::Result<
         lease: Duration::from_secs_f64(args.lease_s),
         written: AtomicU64::new(0),
         kept: AtomicU64::new(0),
+        taken_over: AtomicU64::new(0),
         running_files: AtomicU64::new(0),
         bar: progress(args.quiet),
         lines: false,
@@ -208,6 +214,7 @@ pub async fn run(opened: &OpenedGenerator, args: &ExportArgs) -> anyhow::Result<
         kept: ex.kept.load(Ordering::Relaxed),
         generated: generator.metrics.generations.get() - generated_before,
         units: done.iter().sum(),
+        taken_over: ex.taken_over.load(Ordering::Relaxed),
         bytes: out.bytes().await?,
         ms: started.elapsed().as_millis() as u64,
     };
@@ -297,6 +304,9 @@ impl Exporter<'_> {
                     self.running_files
                         .fetch_sub(u64::try_from(files).unwrap_or(0), Ordering::Relaxed);
                     done += 1;
+                    if unit.again {
+                        self.taken_over.fetch_add(1, Ordering::Relaxed);
+                    }
                     self.refresh().await?;
                 }
                 // Another exporter took the unit over: it writes the same files.
