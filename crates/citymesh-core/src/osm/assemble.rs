@@ -194,6 +194,18 @@ pub struct Repaired {
 pub struct MemberWays {
     pub relation: i64,
     pub ways: Vec<i64>,
+    /// For each of `ways` (same order): whether its role is `inner`, and its node ids (empty
+    /// when the data had none). What a replication diff rebuilds the relation from; empty when
+    /// read from a data tile packed before version 3.
+    pub inner: Vec<bool>,
+    pub refs: Vec<Vec<i64>>,
+}
+
+impl MemberWays {
+    /// Whether the roles and node ids of every way are known (packed since version 3).
+    pub fn is_complete(&self) -> bool {
+        self.inner.len() == self.ways.len() && self.refs.len() == self.ways.len()
+    }
 }
 
 /// The buildings of one OSM document.
@@ -393,13 +405,13 @@ pub fn assemble(mut raw: RawOsm) -> OsmBuildings {
                         what: "missing_inner_ring",
                     });
                 }
+                let way_members = || rel.members.iter().filter(|m| m.kind == MemberKind::Way);
                 out.member_ways.push(MemberWays {
                     relation: rel.id,
-                    ways: rel
-                        .members
-                        .iter()
-                        .filter(|m| m.kind == MemberKind::Way)
-                        .map(|m| m.id)
+                    ways: way_members().map(|m| m.id).collect(),
+                    inner: way_members().map(|m| m.role == "inner").collect(),
+                    refs: way_members()
+                        .map(|m| ways.get(&m.id).map(|w| w.refs.clone()).unwrap_or_default())
                         .collect(),
                 });
                 out.buildings.push(BuildingRecord {

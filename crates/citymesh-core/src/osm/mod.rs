@@ -6,10 +6,12 @@
 //! multipolygon rings and skips (and counts) what real data gets wrong.
 
 mod assemble;
+mod change;
 mod overpass_json;
 mod packed;
 mod pbf;
 mod raw;
+mod update;
 mod write;
 mod xml;
 
@@ -23,9 +25,11 @@ pub use assemble::{
 pub fn is_building_multipolygon(tags: &Tags) -> bool {
     tags.get("type").map(String::as_str) == Some("multipolygon") && building_kind(tags).is_some()
 }
+pub use change::{Action, OsmChange, read_change};
 pub use packed::{PACKED_VERSION, REPAIRS, is_packed, pack, pack_parts, unpack};
 pub use pbf::relation_members;
 pub use raw::{Member, MemberKind, RawOsm, RawRelation, RawWay, Tags};
+pub use update::{ChangeError, Lookups, Rebuilt, rebuild, update_tile};
 pub use write::write_overpass_json;
 
 /// The OSM formats citymesh reads.

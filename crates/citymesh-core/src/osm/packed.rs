@@ -12,7 +12,9 @@
 //! - the skipped buildings (id, reason, optional bounds as raw `f64`s) and the repaired ones
 //!   (id, what);
 //! - since version 2, the member ways of each multipolygon (relation id, count, way ids as
-//!   deltas), what a later change to one of those ways must redraw (version 1 has none).
+//!   deltas), what a later change to one of those ways must redraw (version 1 has none);
+//! - since version 3, after each multipolygon's way ids, each way's role (a byte: 1 inner, 0
+//!   not) and node ids (count, then deltas), what a replication diff rebuilds it from.
 //!
 //! A ring node keeps its OSM node id (a delta from the previous id in the tile) and its
 //! coordinates as deltas of whole 1e-7 degrees from the previous node. Coordinates are kept
@@ -30,7 +32,7 @@ use foldhash::HashMap;
 /// The first bytes of a packed data tile.
 pub const PACKED_MAGIC: &[u8; 4] = b"CMPK";
 /// The version of the layout written (and the newest read).
-pub const PACKED_VERSION: u8 = 2;
+pub const PACKED_VERSION: u8 = 3;
 
 /// What [`Repaired::what`] can say, in the order packed.
 pub const REPAIRS: [&str; 2] = ["missing_inner_ring", "tag_too_long"];
@@ -275,6 +277,18 @@ pub fn pack_parts(
             w.int(way.wrapping_sub(prev_way));
             prev_way = way;
         }
+        // Incomplete member lists (read from version 2) are written as unknown: no nodes.
+        for i in 0..m.ways.len() {
+            w.out
+                .push(u8::from(m.inner.get(i).copied().unwrap_or(false)));
+            let refs = m.refs.get(i).map_or(&[][..], Vec::as_slice);
+            w.len(refs.len());
+            let mut prev_ref = 0i64;
+            for &r in refs {
+                w.int(r.wrapping_sub(prev_ref));
+                prev_ref = r;
+            }
+        }
     }
     w.out
 }
@@ -479,7 +493,30 @@ pub fn unpack(bytes: &[u8]) -> Result<OsmBuildings, OsmError> {
                 way = way.wrapping_add(r.int()?);
                 ways.push(way);
             }
-            out.member_ways.push(MemberWays { relation, ways });
+            let (mut inner, mut refs) = (Vec::new(), Vec::new());
+            if version >= 3 {
+                for _ in 0..n {
+                    inner.push(match r.byte()? {
+                        0 => false,
+                        1 => true,
+                        _ => return Err(corrupt("unknown member role")),
+                    });
+                    let k = r.count(1)?;
+                    let mut way_refs = Vec::with_capacity(k);
+                    let mut node = 0i64;
+                    for _ in 0..k {
+                        node = node.wrapping_add(r.int()?);
+                        way_refs.push(node);
+                    }
+                    refs.push(way_refs);
+                }
+            }
+            out.member_ways.push(MemberWays {
+                relation,
+                ways,
+                inner,
+                refs,
+            });
         }
     }
     if r.at != bytes.len() {
@@ -554,8 +591,19 @@ mod tests {
             id,
             what: REPAIRS[w],
         });
-        let member_ways = (any::<i64>(), proptest::collection::vec(any::<i64>(), 0..5))
-            .prop_map(|(relation, ways)| MemberWays { relation, ways });
+        let member_way = (
+            any::<i64>(),
+            any::<bool>(),
+            proptest::collection::vec(any::<i64>(), 0..6),
+        );
+        let member_ways = (any::<i64>(), proptest::collection::vec(member_way, 0..5)).prop_map(
+            |(relation, members)| MemberWays {
+                relation,
+                ways: members.iter().map(|m| m.0).collect(),
+                inner: members.iter().map(|m| m.1).collect(),
+                refs: members.into_iter().map(|m| m.2).collect(),
+            },
+        );
         (
             proptest::collection::vec(record(), 0..8),
             proptest::collection::vec(skipped, 0..3),
@@ -609,7 +657,7 @@ mod tests {
         packed[4] = PACKED_VERSION + 1;
         let e = unpack(&packed).unwrap_err().to_string();
         assert!(
-            e.contains("version 3") && e.contains("reads versions 1 to 2"),
+            e.contains("version 4") && e.contains("reads versions 1 to 3"),
             "{e}"
         );
         packed[4] = 0;
