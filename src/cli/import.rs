@@ -7,8 +7,15 @@ use std::path::PathBuf;
 #[derive(Debug, Clone, Parser)]
 pub struct ImportArgs {
     /// The OSM files.
-    #[arg(required = true)]
+    #[arg(required_unless_present = "changes")]
     pub files: Vec<PathBuf>,
+
+    /// Apply a change file (osmChange, `.osc` or `.osc.gz`) to the imported data instead: the
+    /// buildings it touches are rebuilt, and the generated tiles over them dropped. Files
+    /// from a replication feed are better followed with `citymesh replicate`, which also
+    /// records the sequence number.
+    #[arg(long, conflicts_with = "files")]
+    pub changes: Option<PathBuf>,
 
     /// The database to write into (the one `serve` uses): on PostgreSQL, running replicas are
     /// told which areas changed and drop what they hold of them.

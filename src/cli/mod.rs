@@ -9,6 +9,7 @@ mod export;
 mod import;
 mod infer_roofs;
 mod options;
+mod replicate;
 mod scene;
 mod serve;
 
@@ -18,6 +19,7 @@ pub use export::*;
 pub use import::*;
 pub use infer_roofs::*;
 pub use options::*;
+pub use replicate::*;
 pub use scene::*;
 pub use serve::*;
 
@@ -38,6 +40,10 @@ pub enum Command {
     /// Store OSM files (PBF, OSM XML or Overpass JSON, optionally .gz) as data tiles in the
     /// cache database, so `serve --offline` has buildings without any upstream.
     Import(ImportArgs),
+    /// Follow an OpenStreetMap replication feed (`state.txt` and `AAA/BBB/CCC.osc.gz`): apply
+    /// each change file to the imported data, each in one transaction with its sequence
+    /// number, and drop the generated tiles over what changed.
+    Replicate(ReplicateArgs),
     /// Make one scene from OSM and SRTM files into a GLB file (a batch export, no server):
     /// `citymesh scene --osm FILE --dem-dir DIR [--bbox ...] -o out.glb [--encoding meshopt]
     /// [--stats out.json]`.

@@ -7,6 +7,7 @@ pub mod classify_image;
 pub mod export;
 pub mod import;
 pub mod infer_roofs;
+pub mod replicate;
 pub mod scene;
 pub mod serve;
 
@@ -34,6 +35,7 @@ pub fn run(command: Command) -> anyhow::Result<()> {
         // batch commands run on this thread and start none (it shows in whole-process timings).
         command @ (Command::Serve(_)
         | Command::Import(_)
+        | Command::Replicate(_)
         | Command::Classify(_)
         | Command::Export(_)) => runtime(command),
         Command::AdaptRoofs(args) if args.labels.is_none() => runtime(Command::AdaptRoofs(args)),
@@ -54,6 +56,14 @@ fn runtime(command: Command) -> anyhow::Result<()> {
 async fn run_async(command: Command) -> anyhow::Result<()> {
     match command {
         Command::Serve(args) => serve::run(*args).await,
+        Command::Replicate(args) => replicate::run(args).await,
+        Command::Import(args) if args.changes.is_some() => {
+            let db = args.database.open().await?;
+            let path = args.changes.clone().unwrap_or_default();
+            let report = replicate::apply_file(&path, &db).await?;
+            println!("{}: {}", path.display(), replicate::describe(&report));
+            Ok(())
+        }
         Command::Import(args) => {
             let db = args.database.open().await?;
             let options = crate::source::data_tiles::import::ImportOptions {
@@ -196,6 +206,7 @@ fn run_batch(command: Command) -> anyhow::Result<()> {
         }
         Command::Serve(_)
         | Command::Import(_)
+        | Command::Replicate(_)
         | Command::Classify(_)
         | Command::Export(_)
         | Command::AdaptRoofs(_) => {

@@ -30,6 +30,7 @@ mod import_abuse;
 mod import_stream;
 mod job_queue_backends;
 mod replicas;
+mod replication;
 mod roof_prior;
 mod scene_command;
 mod storage_backends;

@@ -377,6 +377,13 @@ impl TileStore {
             });
     }
 
+    /// How many generated tiles are stored.
+    pub async fn count(&self) -> Result<i64, sqlx::Error> {
+        on_pool!(&self.db, pool => {
+            sqlx::query_scalar("SELECT COUNT(*) FROM generated_tiles").fetch_one(pool).await
+        })
+    }
+
     /// Deletes one key's row, if stored.
     pub async fn remove(&self, key: &TileKey, data_version: &str) -> Result<(), sqlx::Error> {
         let removed: Option<i64> = on_pool!(&self.db, pool => {

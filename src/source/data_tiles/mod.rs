@@ -6,9 +6,10 @@
 
 pub mod data_tile;
 pub mod import;
+pub mod replication;
 mod store;
 
-pub use store::{DataOrigin, OsmTileStore, StoredDataTile, content_hash};
+pub use store::{DataOrigin, OsmTileStore, ReplicationState, StoredDataTile, content_hash};
 
 use super::{
     AreaBuildings, BuildingSource, CHANGE_CAPACITY, DataChanged, PriorScope, SourceError,

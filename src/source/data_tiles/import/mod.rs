@@ -250,9 +250,12 @@ fn read_files(
     Ok(s)
 }
 
+/// The elements a data tile's buildings are made from (for the replication index).
+type Elements = Vec<(super::store::ElementKind, i64)>;
+
 /// One data tile's records from the spill: one per building (the first file's, when files
 /// repeat one), by id, packed; and how many of them this tile counts.
-fn data_tile_of(records: Vec<Spilled>) -> anyhow::Result<(Vec<u8>, usize)> {
+fn data_tile_of(records: Vec<Spilled>) -> anyhow::Result<(Vec<u8>, usize, Elements)> {
     let mut seen = HashSet::new();
     let mut kept: Vec<BuildingRecord> = Vec::with_capacity(records.len());
     let mut member_ways = Vec::new();
@@ -273,7 +276,13 @@ fn data_tile_of(records: Vec<Spilled>) -> anyhow::Result<(Vec<u8>, usize)> {
     member_ways.sort_by_key(|m| m.relation);
     let refs: Vec<&BuildingRecord> = kept.iter().collect();
     let member_refs: Vec<&MemberWays> = member_ways.iter().collect();
-    Ok((pack_parts(&refs, &[], &[], &member_refs), homes))
+    let body = pack_parts(&refs, &[], &[], &member_refs);
+    let osm = OsmBuildings {
+        buildings: kept,
+        member_ways,
+        ..OsmBuildings::default()
+    };
+    Ok((body, homes, super::replication::elements_of(&osm)))
 }
 
 /// Imports the files into `store`.
@@ -302,13 +311,14 @@ pub async fn import_files(
     } = spiller;
 
     // Grouped into data tiles on a blocking thread, written here, in one transaction.
-    let (tx, mut rx) =
-        tokio::sync::mpsc::channel::<anyhow::Result<(TileCoord, Vec<u8>, usize)>>(TILES_IN_FLIGHT);
+    let (tx, mut rx) = tokio::sync::mpsc::channel::<
+        anyhow::Result<(TileCoord, Vec<u8>, usize, Elements)>,
+    >(TILES_IN_FLIGHT);
     let allowance = options.memory_bytes / 4;
     let grouping = tokio::task::spawn_blocking(move || {
         let result = spill.drain(allowance, |t, records| {
-            let (body, homes) = data_tile_of(records)?;
-            tx.blocking_send(Ok((t, body, homes)))
+            let (body, homes, elements) = data_tile_of(records)?;
+            tx.blocking_send(Ok((t, body, homes, elements)))
                 .map_err(|_| anyhow::anyhow!("the import stopped writing"))
         });
         if let Err(e) = result {
@@ -324,7 +334,8 @@ pub async fn import_files(
         let next = rx.recv().await;
         let last = next.is_none();
         if let Some(next) = next {
-            let (t, body, homes) = next?;
+            let (t, body, homes, elements) = next?;
+            writer.index_elements(&t, elements).await?;
             report.buildings += homes;
             report.data_tiles += 1;
             report.stored_bytes += body.len() as u64;

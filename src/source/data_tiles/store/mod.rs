@@ -4,7 +4,10 @@
 //! fetched again when needed); imported data is never evicted. Reads note their use in memory
 //! and never write.
 
+mod replication;
 mod statements;
+
+pub use replication::{ElementKind, ReplicationState};
 
 use crate::clock::Clock;
 use crate::db::{Database, UseNotes};

@@ -1,0 +1,475 @@
+//! Following a replication feed (issue 42) over imported Kirchfeld: a feed of `state.txt` and
+//! `.osc.gz` files behind a small HTTP server on 127.0.0.1; each kind of edit shows in the
+//! served tiles, exactly the generated tiles over the changed outlines are dropped, the rest
+//! keep their ETags; a kill -9 while diffs are applied loses and repeats nothing; and every bad
+//! feed is refused with the store as it was.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
+
+use crate::common::{self, app_with, data_dir, dem_dir, get};
+use axum::extract::{Path as UrlPath, State};
+use axum::http::StatusCode;
+use citymesh::cache::TileStore;
+use citymesh::commands::import::import_into;
+use citymesh::db::{self, Database};
+use citymesh::source::data_tiles::OsmTileStore;
+use citymesh::source::data_tiles::replication::feed::{Feed, catch_up, sequence_path};
+use citymesh_core::building::cluster::record_bounds;
+use citymesh_core::geo::{GeoBbox, TileCoord};
+use citymesh_core::osm::{BuildingRecord, OsmBuildings, OsmId, read_buildings, unpack};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+const MARGIN: f64 = 0.002;
+
+async fn sqlite(path: &Path) -> Database {
+    Database::Sqlite(db::open(path.to_str().unwrap()).await.unwrap())
+}
+
+/// A folder served over HTTP on 127.0.0.1; a file `NAME.status` beside `NAME` makes `NAME`
+/// answer that status instead.
+async fn serve_folder(dir: PathBuf) -> String {
+    async fn file(
+        State(dir): State<PathBuf>,
+        UrlPath(path): UrlPath<String>,
+    ) -> Result<Vec<u8>, StatusCode> {
+        let p = dir.join(&path);
+        if let Ok(s) = std::fs::read_to_string(format!("{}.status", p.display())) {
+            return Err(StatusCode::from_u16(s.trim().parse().unwrap()).unwrap());
+        }
+        std::fs::read(p).map_err(|_| StatusCode::NOT_FOUND)
+    }
+    let app = axum::Router::new()
+        .route("/{*path}", axum::routing::get(file))
+        .with_state(dir);
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let url = format!("http://{}", listener.local_addr().unwrap());
+    tokio::spawn(async move { axum::serve(listener, app).await.unwrap() });
+    url
+}
+
+fn gz(text: &str) -> Vec<u8> {
+    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+    e.write_all(text.as_bytes()).unwrap();
+    e.finish().unwrap()
+}
+
+fn state_txt(n: i64) -> String {
+    format!(
+        "#test feed\nsequenceNumber={n}\ntimestamp=2026-12-07T10\\:{:02}\\:00Z\n",
+        n % 60
+    )
+}
+
+/// Publishes sequence `n` with `body` (the inside of `<osmChange>`), and moves `state.txt` to it.
+fn publish(feed: &Path, n: i64, body: &str) {
+    publish_bytes(
+        feed,
+        n,
+        &gz(&format!("<osmChange version=\"0.6\">{body}</osmChange>")),
+    );
+}
+
+fn publish_bytes(feed: &Path, n: i64, osc_gz: &[u8]) {
+    let path = feed.join(sequence_path(n));
+    std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+    std::fs::write(format!("{}.osc.gz", path.display()), osc_gz).unwrap();
+    std::fs::write(format!("{}.state.txt", path.display()), state_txt(n)).unwrap();
+    std::fs::write(feed.join("state.txt"), state_txt(n)).unwrap();
+}
+
+fn kirchfeld() -> PathBuf {
+    data_dir().join("osm/karlsruhe-kirchfeld.osm.pbf")
+}
+
+fn way_xml(id: i64, nodes: &[i64], tags: &[(&str, &str)]) -> String {
+    let nd: String = nodes.iter().map(|n| format!("<nd ref=\"{n}\"/>")).collect();
+    let tg: String = tags
+        .iter()
+        .map(|(k, v)| format!("<tag k=\"{k}\" v=\"{v}\"/>"))
+        .collect();
+    format!("<way id=\"{id}\" version=\"9\">{nd}{tg}</way>")
+}
+
+fn closed_refs(r: &BuildingRecord) -> Vec<i64> {
+    let ring = &r.outers[0].nodes;
+    ring.iter()
+        .chain(std::iter::once(&ring[0]))
+        .map(|n| n.id.unwrap())
+        .collect()
+}
+
+/// Every stored data tile's body.
+async fn bodies(db: &Database) -> Vec<(TileCoord, Vec<u8>)> {
+    let store = OsmTileStore::new(db.clone());
+    let mut out = Vec::new();
+    for t in store.stored_tiles().await.unwrap() {
+        out.push((t, store.get(&t).await.unwrap().unwrap().body.to_vec()));
+    }
+    out
+}
+
+async fn stored_buildings(db: &Database) -> Vec<BuildingRecord> {
+    let mut all: Vec<BuildingRecord> = Vec::new();
+    for (_, b) in bodies(db).await {
+        all.extend(unpack(&b).unwrap().buildings);
+    }
+    all.sort_by_key(|r| r.id);
+    all.dedup_by_key(|r| r.id);
+    all
+}
+
+/// The z16 tiles over Kirchfeld's buildings.
+fn z16_tiles(osm: &OsmBuildings) -> Vec<TileCoord> {
+    let mut b = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
+    for r in &osm.buildings {
+        let rb = record_bounds(r);
+        b = [
+            b[0].min(rb[0]),
+            b[1].min(rb[1]),
+            b[2].max(rb[2]),
+            b[3].max(rb[3]),
+        ];
+    }
+    TileCoord::covering(&GeoBbox::new(b[0], b[1], b[2], b[3]).unwrap(), 16)
+        .tiles()
+        .collect()
+}
+
+fn overlaps(t: &TileCoord, area: &[f64; 4]) -> bool {
+    let b = t.bounds();
+    b.min_lon() <= area[2]
+        && b.max_lon() >= area[0]
+        && b.min_lat() <= area[3]
+        && b.max_lat() >= area[1]
+}
+
+fn grown(b: [f64; 4]) -> [f64; 4] {
+    [b[0] - MARGIN, b[1] - MARGIN, b[2] + MARGIN, b[3] + MARGIN]
+}
+
+fn union(a: [f64; 4], b: [f64; 4]) -> [f64; 4] {
+    [
+        a[0].min(b[0]),
+        a[1].min(b[1]),
+        a[2].max(b[2]),
+        a[3].max(b[3]),
+    ]
+}
+
+/// The feature row of a building in a served tile, if drawn there.
+fn row(glb: &[u8], id: OsmId) -> Option<serde_json::Map<String, serde_json::Value>> {
+    let (kind, n) = match id {
+        OsmId::Way(n) => ("way", n),
+        OsmId::Relation(n) => ("relation", n),
+    };
+    assert!(glb.starts_with(b"glTF"), "{}", String::from_utf8_lossy(glb));
+    common::decode::feature_rows(glb)
+        .into_iter()
+        .find(|r| r["osm_type"] == kind && r["osm_id"] == n.to_string())
+}
+
+/// The z16 tile that draws a building (its group's point is there): the one whose GLB has its row.
+async fn tile_drawing(
+    app: &axum::Router,
+    id: OsmId,
+    near: &BuildingRecord,
+) -> (TileCoord, Vec<u8>) {
+    let b = record_bounds(near);
+    let around = GeoBbox::new(b[0], b[1], b[2], b[3]).unwrap();
+    for t in TileCoord::covering(&around, 16).tiles() {
+        let a = get(app, &format!("/tiles/16/{}/{}.glb", t.x, t.y)).await;
+        if row(&a.body, id).is_some() {
+            return (t, a.body.to_vec());
+        }
+    }
+    panic!("no z16 tile draws {id}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn each_kind_of_edit_shows_and_drops_exactly_the_tiles_over_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let db_path = dir.path().join("c.sqlite");
+    let db = sqlite(&db_path).await;
+    import_into(&[kirchfeld()], &db, true).await.unwrap();
+    let feed_dir = dir.path().join("feed");
+    std::fs::create_dir_all(&feed_dir).unwrap();
+    std::fs::write(feed_dir.join("state.txt"), state_txt(100)).unwrap();
+    let url = serve_folder(feed_dir.clone()).await;
+    let store = OsmTileStore::new(db.clone());
+    let tiles = TileStore::open(&db, u64::MAX, "test").await.unwrap();
+    let feed = Feed::new(&url).unwrap();
+
+    let osm = read_buildings(&common::osm_bytes("karlsruhe-kirchfeld.osm.pbf")).unwrap();
+    let ways: Vec<&BuildingRecord> = osm
+        .buildings
+        .iter()
+        .filter(|r| matches!(r.id, OsmId::Way(_)) && !r.is_part && r.outers[0].nodes.len() >= 4)
+        .collect();
+    let relation = osm
+        .buildings
+        .iter()
+        .find(|r| matches!(r.id, OsmId::Relation(_)) && !r.is_part)
+        .unwrap();
+    let (raise, roof, moved, deleted) = (ways[10], ways[400], ways[800], ways[1200]);
+    let grid = z16_tiles(&osm);
+
+    // Sequence 100 is where the import stands: nothing to apply before 101.
+    catch_up(&store, &tiles, &feed, Some(101), |_| {})
+        .await
+        .unwrap();
+    assert_eq!(store.replication_state().await.unwrap(), None);
+
+    // Each edit: (what it does, its body, the building it shows on, old and new outline).
+    let new_id = OsmId::Way(990_000_000_001);
+    let [w, s, _, _] = record_bounds(raise);
+    let (lon, lat) = (w - 0.0006, s - 0.0004);
+    let square = [(0.0, 0.0), (0.0001, 0.0), (0.0001, 0.00007), (0.0, 0.00007)];
+    let new_nodes: String = square
+        .iter()
+        .enumerate()
+        .map(|(i, (dx, dy))| {
+            format!(
+                "<node id=\"{}\" version=\"1\" lat=\"{:.7}\" lon=\"{:.7}\"/>",
+                990_000_000_001 + i as i64,
+                lat + dy,
+                lon + dx
+            )
+        })
+        .collect();
+    let new_refs = [
+        990_000_000_001,
+        990_000_000_002,
+        990_000_000_003,
+        990_000_000_004,
+        990_000_000_001,
+    ];
+    let moved_node = moved.outers[0].nodes[1];
+    let seven = |v: f64| format!("{v:.7}").parse::<f64>().unwrap();
+    let moved_to = (
+        seven(moved_node.lon + 0.00003),
+        seven(moved_node.lat + 0.00002),
+    );
+    let mut raise_tags = raise.tags.clone();
+    raise_tags.insert("height".into(), "31.5".into());
+    let mut roof_tags = roof.tags.clone();
+    roof_tags.insert("roof:shape".into(), "gabled".into());
+    let mut rel_tags = relation.tags.clone();
+    rel_tags.insert("height".into(), "27".into());
+    let rel_members = {
+        let m = osm
+            .member_ways
+            .iter()
+            .find(|m| OsmId::Relation(m.relation) == relation.id)
+            .unwrap();
+        m.ways
+            .iter()
+            .zip(&m.inner)
+            .map(|(w, inner)| {
+                format!(
+                    "<member type=\"way\" ref=\"{w}\" role=\"{}\"/>",
+                    if *inner { "inner" } else { "outer" }
+                )
+            })
+            .collect::<String>()
+    };
+    let OsmId::Relation(rel_n) = relation.id else {
+        unreachable!()
+    };
+    let tag_xml = |t: &std::collections::BTreeMap<String, String>| {
+        t.iter()
+            .map(|(k, v)| {
+                format!(
+                    "<tag k=\"{k}\" v=\"{}\"/>",
+                    v.replace('"', "&quot;").replace('&', "&amp;")
+                )
+            })
+            .collect::<String>()
+    };
+    let id_of = |r: &BuildingRecord| match r.id {
+        OsmId::Way(n) | OsmId::Relation(n) => n,
+    };
+    let new_outline = [lon, lat, lon + 0.0001, lat + 0.00007];
+    let moved_after = {
+        let mut m = moved.clone();
+        m.outers[0].nodes[1].lon = moved_to.0;
+        m.outers[0].nodes[1].lat = moved_to.1;
+        record_bounds(&m)
+    };
+    let edits: Vec<(&str, String, OsmId, [f64; 4])> = vec![
+        (
+            "add a building",
+            format!(
+                "<create>{new_nodes}{}</create>",
+                way_xml(
+                    990_000_000_001,
+                    &new_refs,
+                    &[("building", "yes"), ("height", "7.5")]
+                )
+            ),
+            new_id,
+            new_outline,
+        ),
+        (
+            "raise a height",
+            format!(
+                "<modify><way id=\"{}\" version=\"9\">{}{}</way></modify>",
+                id_of(raise),
+                closed_refs(raise)
+                    .iter()
+                    .map(|n| format!("<nd ref=\"{n}\"/>"))
+                    .collect::<String>(),
+                tag_xml(&raise_tags)
+            ),
+            raise.id,
+            record_bounds(raise),
+        ),
+        (
+            "change a roof shape",
+            format!(
+                "<modify><way id=\"{}\" version=\"9\">{}{}</way></modify>",
+                id_of(roof),
+                closed_refs(roof)
+                    .iter()
+                    .map(|n| format!("<nd ref=\"{n}\"/>"))
+                    .collect::<String>(),
+                tag_xml(&roof_tags)
+            ),
+            roof.id,
+            record_bounds(roof),
+        ),
+        (
+            "move a node",
+            format!(
+                "<modify><node id=\"{}\" version=\"5\" lat=\"{:.7}\" lon=\"{:.7}\"/></modify>",
+                moved_node.id.unwrap(),
+                moved_to.1,
+                moved_to.0
+            ),
+            moved.id,
+            union(record_bounds(moved), moved_after),
+        ),
+        (
+            "delete a building",
+            format!(
+                "<delete><way id=\"{}\" version=\"9\"/></delete>",
+                id_of(deleted)
+            ),
+            deleted.id,
+            record_bounds(deleted),
+        ),
+        (
+            "edit a multipolygon",
+            format!(
+                "<modify><relation id=\"{rel_n}\" version=\"9\">{rel_members}{}</relation></modify>",
+                tag_xml(&rel_tags)
+            ),
+            relation.id,
+            record_bounds(relation),
+        ),
+    ];
+
+    for (i, (what, body, id, outline)) in edits.iter().enumerate() {
+        let seq = 101 + i as i64;
+        // Generate the grid's tiles (served from the store afterwards), note their ETags.
+        let app = app_with(&dem_dir(), &db_path, &[]).await;
+        let mut etags = Vec::new();
+        for t in &grid {
+            let a = get(&app, &format!("/tiles/16/{}/{}.glb", t.x, t.y)).await;
+            assert_eq!(a.status, StatusCode::OK, "{what}");
+            etags.push(a.header("etag").to_owned());
+        }
+        common::settle_writes().await;
+        drop(app);
+        let before = tiles.count().await.unwrap() as u64;
+
+        publish(&feed_dir, seq, body);
+        let reports = catch_up(&store, &tiles, &feed, Some(101), |_| {})
+            .await
+            .unwrap();
+        assert_eq!(reports.len(), 1, "{what}");
+        let r = &reports[0];
+        assert_eq!(r.sequence, Some(seq));
+        // Exactly the generated tiles over the old and new outline, grown by the margin.
+        let area = grown(*outline);
+        let expected = grid.iter().filter(|t| overlaps(t, &area)).count() as u64;
+        assert!(expected > 0, "{what}");
+        assert_eq!(r.tiles_dropped, expected, "{what}: {r:?}");
+        assert_eq!(
+            tiles.count().await.unwrap() as u64,
+            before - expected,
+            "{what}"
+        );
+        let state = store.replication_state().await.unwrap().unwrap();
+        assert_eq!((state.sequence, state.url.as_str()), (seq, url.as_str()));
+
+        // What a user sees now.
+        let app = app_with(&dem_dir(), &db_path, &[]).await;
+        for (t, etag) in grid.iter().zip(&etags) {
+            if !overlaps(t, &area) {
+                let a = get(&app, &format!("/tiles/16/{}/{}.glb", t.x, t.y)).await;
+                assert_eq!(a.header("etag"), etag, "{what}: untouched {t:?}");
+                assert_eq!(
+                    a.header("x-citymesh-cache"),
+                    "sqlite",
+                    "{what}: {t:?} regenerated"
+                );
+            }
+        }
+        let stored = stored_buildings(&db).await;
+        let now = stored.iter().find(|b| b.id == *id);
+        match *what {
+            "add a building" => {
+                let b = now.expect("the new building is stored");
+                let (_, glb) = tile_drawing(&app, *id, b).await;
+                assert_eq!(row(&glb, *id).unwrap()["height"], "7.5");
+            }
+            "raise a height" => {
+                let (_, glb) = tile_drawing(&app, *id, now.unwrap()).await;
+                assert_eq!(row(&glb, *id).unwrap()["height"], "31.5");
+            }
+            "change a roof shape" => {
+                let (_, glb) = tile_drawing(&app, *id, now.unwrap()).await;
+                assert_eq!(row(&glb, *id).unwrap()["roof_shape"], "gabled");
+            }
+            "move a node" => {
+                let n = now.unwrap().outers[0].nodes[1];
+                assert_eq!((n.lon, n.lat), moved_to, "the node moved in the store");
+                assert_eq!(record_bounds(now.unwrap()), moved_after);
+            }
+            "delete a building" => {
+                assert!(now.is_none(), "deleted from every data tile");
+                for t in grid.iter().filter(|t| overlaps(t, &area)) {
+                    let a = get(&app, &format!("/tiles/16/{}/{}.glb", t.x, t.y)).await;
+                    assert!(row(&a.body, *id).is_none(), "{id} still drawn in {t:?}");
+                }
+            }
+            _ => {
+                let (_, glb) = tile_drawing(&app, *id, now.unwrap()).await;
+                assert_eq!(row(&glb, *id).unwrap()["height"], "27");
+                // The 3D Tiles leaf over it shows it too.
+                let c = now.unwrap().outers[0].nodes[0];
+                let leaf = TileCoord::containing(15, c.lon, c.lat);
+                let mut found = false;
+                for x in leaf.x.saturating_sub(1)..=leaf.x + 1 {
+                    for y in leaf.y.saturating_sub(1)..=leaf.y + 1 {
+                        let a = get(&app, &format!("/3dtiles/world/15/{x}/{y}.glb")).await;
+                        if a.status != StatusCode::OK {
+                            continue;
+                        }
+                        if let Some(r) = row(&a.body, *id) {
+                            assert_eq!(r["height"], "27");
+                            found = true;
+                        }
+                    }
+                }
+                assert!(found, "no world leaf draws {id}");
+            }
+        }
+        common::settle_writes().await;
+    }
+    // Nothing is applied twice: the feed has nothing new.
+    let again = catch_up(&store, &tiles, &feed, Some(101), |_| {})
+        .await
+        .unwrap();
+    assert!(again.is_empty());
+}
