@@ -163,9 +163,10 @@ fn row(glb: &[u8], id: OsmId) -> Option<serde_json::Map<String, serde_json::Valu
         OsmId::Relation(n) => ("relation", n),
     };
     assert!(glb.starts_with(b"glTF"), "{}", String::from_utf8_lossy(glb));
+    let n = n.to_string();
     common::decode::feature_rows(glb)
         .into_iter()
-        .find(|r| r["osm_type"] == kind && r["osm_id"] == n.to_string())
+        .find(|r| r["osm_type"] == kind && r["osm_id"] == n.as_str())
 }
 
 /// The z16 tile that draws a building (its group's point is there): the one whose GLB has its row.
@@ -179,7 +180,7 @@ async fn tile_drawing(
     for t in TileCoord::covering(&around, 16).tiles() {
         let a = get(app, &format!("/tiles/16/{}/{}.glb", t.x, t.y)).await;
         if row(&a.body, id).is_some() {
-            return (t, a.body.to_vec());
+            return (t, a.body);
         }
     }
     panic!("no z16 tile draws {id}");
@@ -472,4 +473,113 @@ async fn each_kind_of_edit_shows_and_drops_exactly_the_tiles_over_it() {
         .await
         .unwrap();
     assert!(again.is_empty());
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn every_bad_feed_is_refused_with_the_store_as_it_was() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = sqlite(&dir.path().join("c.sqlite")).await;
+    import_into(&[kirchfeld()], &db, true).await.unwrap();
+    let feed_dir = dir.path().join("feed");
+    std::fs::create_dir_all(&feed_dir).unwrap();
+    let url = serve_folder(feed_dir.clone()).await;
+    let store = OsmTileStore::new(db.clone());
+    let tiles = TileStore::open(&db, u64::MAX, "test").await.unwrap();
+    let feed = Feed::new(&url).unwrap();
+    let osm = read_buildings(&common::osm_bytes("karlsruhe-kirchfeld.osm.pbf")).unwrap();
+    let b = &osm.buildings[0];
+    let good = format!(
+        "<modify>{}</modify>",
+        way_xml(
+            match b.id {
+                OsmId::Way(n) | OsmId::Relation(n) => n,
+            },
+            &closed_refs(b),
+            &[("building", "yes"), ("height", "12.25")]
+        )
+    );
+    // One good diff first: sequence 1.
+    publish(&feed_dir, 1, &good);
+    catch_up(&store, &tiles, &feed, Some(1), |_| {})
+        .await
+        .unwrap();
+    let kept = bodies(&db).await;
+    let refused = |e: String, want: &str| assert!(e.contains(want), "{want:?} not in: {e}");
+
+    // The feed answers 500 for state.txt.
+    std::fs::write(feed_dir.join("state.txt.status"), "500").unwrap();
+    let e = catch_up(&store, &tiles, &feed, None, |_| {})
+        .await
+        .unwrap_err();
+    refused(e.to_string(), "answered HTTP 500");
+    std::fs::remove_file(feed_dir.join("state.txt.status")).unwrap();
+    // A gap: state.txt names 3, sequence 2 is missing (404).
+    publish(&feed_dir, 3, &good);
+    let e = catch_up(&store, &tiles, &feed, None, |_| {})
+        .await
+        .unwrap_err();
+    refused(e.to_string(), "000/000/002.state.txt: answered HTTP 404");
+    // Sequence 2 cut short (half its gzip).
+    let full = gz(&format!("<osmChange version=\"0.6\">{good}</osmChange>"));
+    publish_bytes(&feed_dir, 2, &full[..full.len() / 2]);
+    std::fs::write(feed_dir.join("state.txt"), state_txt(3)).unwrap();
+    let e = catch_up(&store, &tiles, &feed, None, |_| {})
+        .await
+        .unwrap_err();
+    refused(e.to_string(), "000/000/002.osc.gz");
+    // Malformed: not osmChange.
+    publish_bytes(&feed_dir, 2, &gz("<osm><node id=\"1\"/></osm>"));
+    std::fs::write(feed_dir.join("state.txt"), state_txt(3)).unwrap();
+    let e = catch_up(&store, &tiles, &feed, None, |_| {})
+        .await
+        .unwrap_err();
+    refused(e.to_string(), "not an <osmChange>");
+    // Unknown nodes: a new building on nodes nobody has.
+    publish(
+        &feed_dir,
+        2,
+        &format!(
+            "<create>{}</create>",
+            way_xml(
+                5,
+                &[7_000_000_001, 7_000_000_002, 7_000_000_003, 7_000_000_001],
+                &[("building", "yes")]
+            )
+        ),
+    );
+    std::fs::write(feed_dir.join("state.txt"), state_txt(3)).unwrap();
+    let e = catch_up(&store, &tiles, &feed, None, |_| {})
+        .await
+        .unwrap_err();
+    refused(e.to_string(), "way/5 refers to nodes");
+    refused(e.to_string(), "7000000001, 7000000002, 7000000003");
+    // A lying state: the file of sequence 2 says it is 9.
+    publish(&feed_dir, 2, &good);
+    let p = feed_dir.join(format!("{}.state.txt", sequence_path(2)));
+    std::fs::write(&p, state_txt(9)).unwrap();
+    std::fs::write(feed_dir.join("state.txt"), state_txt(3)).unwrap();
+    let e = catch_up(&store, &tiles, &feed, None, |_| {})
+        .await
+        .unwrap_err();
+    refused(e.to_string(), "names sequence 9, not 2");
+    // A state.txt behind the store.
+    std::fs::write(feed_dir.join("state.txt"), state_txt(0)).unwrap();
+    let e = catch_up(&store, &tiles, &feed, None, |_| {})
+        .await
+        .unwrap_err();
+    refused(e.to_string(), "behind the 1 this store applied");
+    // After every refusal: the store as after sequence 1.
+    assert_eq!(bodies(&db).await, kept);
+    assert_eq!(
+        store.replication_state().await.unwrap().unwrap().sequence,
+        1
+    );
+    // Fixed, the feed goes on from 2.
+    std::fs::write(&p, state_txt(2)).unwrap();
+    std::fs::write(feed_dir.join("state.txt"), state_txt(3)).unwrap();
+    let r = catch_up(&store, &tiles, &feed, None, |_| {}).await.unwrap();
+    assert_eq!(
+        r.iter().map(|r| r.sequence).collect::<Vec<_>>(),
+        vec![Some(2), Some(3)]
+    );
 }
