@@ -583,3 +583,108 @@ async fn every_bad_feed_is_refused_with_the_store_as_it_was() {
         vec![Some(2), Some(3)]
     );
 }
+
+/// Diffs that each raise the height of 150 buildings (a different 150 each time).
+fn height_diffs(osm: &OsmBuildings, n: usize) -> Vec<String> {
+    let ways: Vec<&BuildingRecord> = osm
+        .buildings
+        .iter()
+        .filter(|r| matches!(r.id, OsmId::Way(_)))
+        .collect();
+    (0..n)
+        .map(|k| {
+            let edits: String = ways
+                .iter()
+                .skip(k * 150)
+                .take(150)
+                .map(|r| {
+                    let OsmId::Way(id) = r.id else { unreachable!() };
+                    let h = format!("{}.5", 10 + k);
+                    way_xml(id, &closed_refs(r), &[("building", "yes"), ("height", &h)])
+                })
+                .collect();
+            format!("<modify>{edits}</modify>")
+        })
+        .collect()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_kill_during_the_diffs_loses_and_repeats_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let (killed_path, straight_path) = (dir.path().join("k.sqlite"), dir.path().join("s.sqlite"));
+    let killed = sqlite(&killed_path).await;
+    let straight = sqlite(&straight_path).await;
+    import_into(&[kirchfeld()], &killed, true).await.unwrap();
+    import_into(&[kirchfeld()], &straight, true).await.unwrap();
+    let feed_dir = dir.path().join("feed");
+    std::fs::create_dir_all(&feed_dir).unwrap();
+    let osm = read_buildings(&common::osm_bytes("karlsruhe-kirchfeld.osm.pbf")).unwrap();
+    const DIFFS: usize = 12;
+    for (k, body) in height_diffs(&osm, DIFFS).iter().enumerate() {
+        publish(&feed_dir, 1 + k as i64, body);
+    }
+    let url = serve_folder(feed_dir.clone()).await;
+
+    // Uninterrupted, in this process.
+    let feed = Feed::new(&url).unwrap();
+    let store = OsmTileStore::new(straight.clone());
+    let tiles = TileStore::open(&straight, u64::MAX, "test").await.unwrap();
+    let all = catch_up(&store, &tiles, &feed, Some(1), |_| {})
+        .await
+        .unwrap();
+    assert_eq!(all.len(), DIFFS);
+    let want = bodies(&straight).await;
+
+    // The binary, killed once it reported its first diff (it is fetching or applying the next).
+    let run = |path: &Path| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_citymesh"))
+            .args(["replicate", "--once", "--from-sequence", "1", "--url", &url])
+            .args(["--cache-db", path.to_str().unwrap()])
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap()
+    };
+    let sequences_in = |text: &str| -> Vec<i64> {
+        text.lines()
+            .filter_map(|l| l.strip_prefix("sequence ")?.split(':').next()?.parse().ok())
+            .collect()
+    };
+    let mut child = run(&killed_path);
+    let mut out = std::io::BufReader::new(child.stdout.take().unwrap());
+    let mut first = String::new();
+    std::io::BufRead::read_line(&mut out, &mut first).unwrap();
+    child.kill().unwrap(); // SIGKILL
+    child.wait().unwrap();
+    let mut seen = sequences_in(&first);
+    assert_eq!(seen, vec![1], "{first}");
+    let stopped_at = OsmTileStore::new(killed.clone())
+        .replication_state()
+        .await
+        .unwrap()
+        .unwrap()
+        .sequence;
+    assert!(
+        stopped_at < DIFFS as i64,
+        "the kill came too late to test anything"
+    );
+
+    // Run again: it goes on after the last diff committed, each diff once.
+    let again = run(&killed_path).wait_with_output().unwrap();
+    assert!(again.status.success());
+    let rest = sequences_in(&String::from_utf8_lossy(&again.stdout));
+    assert_eq!(rest.first(), Some(&(stopped_at + 1)));
+    seen.extend(&rest);
+    let mut distinct = seen.clone();
+    distinct.dedup();
+    assert_eq!(seen, distinct, "a diff was applied twice");
+    assert_eq!(*seen.last().unwrap(), DIFFS as i64);
+    // The same store as without the kill.
+    assert_eq!(bodies(&killed).await, want);
+    let s = OsmTileStore::new(killed.clone())
+        .replication_state()
+        .await
+        .unwrap()
+        .unwrap();
+    assert_eq!(s.sequence, DIFFS as i64);
+}
