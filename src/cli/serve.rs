@@ -166,8 +166,28 @@ pub struct ServeArgs {
     #[arg(long, env = "CITYMESH_OSM_STORE_MB", default_value_t = 1024)]
     pub osm_store_mb: u64,
 
+    /// Follow this OpenStreetMap replication feed (`state.txt`, `AAA/BBB/CCC.osc.gz`) while
+    /// serving: each diff is applied to the imported data, and what it changed is dropped from
+    /// every cache (as `citymesh replicate` does, without a restart).
+    #[arg(long, env = "CITYMESH_REPLICATE_URL")]
+    pub replicate_url: Option<String>,
+
+    /// The first sequence to apply when the store has applied none (see `citymesh replicate
+    /// --from-sequence`).
+    #[arg(
+        long,
+        env = "CITYMESH_REPLICATE_FROM_SEQUENCE",
+        requires = "replicate_url"
+    )]
+    pub replicate_from_sequence: Option<i64>,
+
+    /// Seconds between checks of the feed when caught up (errors back off from 1 s to 10 min).
+    #[arg(long, env = "CITYMESH_REPLICATE_INTERVAL_S", default_value_t = 60,
+          value_parser = clap::value_parser!(u64).range(1..))]
+    pub replicate_interval_s: u64,
+
     /// Hours after which stored Overpass data is refreshed (served meanwhile). Imported data is
-    /// never refreshed.
+    /// never refreshed (follow a feed with --replicate-url instead).
     #[arg(long, env = "CITYMESH_OSM_TTL_HOURS", default_value_t = 168.0)]
     pub osm_ttl_hours: f64,
 

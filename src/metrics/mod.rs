@@ -79,6 +79,47 @@ pub struct Metrics {
     pub replicas: ReplicaMetrics,
     /// Client connections holding a slot now, by slot (a slot is free again once this falls).
     pub connections_open: Family<SlotLabels, prometheus_client::metrics::gauge::Gauge>,
+    /// Following a replication feed.
+    pub replication: ReplicationMetrics,
+}
+
+/// How fresh the data is, and what following a feed did (`serve --replicate-url`; the
+/// sequence and age are read from the database, so they hold for `citymesh replicate` too).
+#[derive(Default, Clone)]
+pub struct ReplicationMetrics {
+    /// Diffs this process applied.
+    pub diffs_applied: Counter,
+    /// Tries to follow the feed that failed (each retried after a back-off).
+    pub errors: Counter,
+    /// The sequence number of the last diff applied (0: none).
+    pub sequence: prometheus_client::metrics::gauge::Gauge,
+    /// Seconds from the applied data's timestamp to now: how far behind OpenStreetMap it is.
+    pub lag_seconds: prometheus_client::metrics::gauge::Gauge,
+}
+
+impl ReplicationMetrics {
+    fn register(&self, registry: &mut Registry) {
+        registry.register(
+            "replication_diffs_applied",
+            "Replication diffs this process applied",
+            self.diffs_applied.clone(),
+        );
+        registry.register(
+            "replication_errors",
+            "Tries to follow the replication feed that failed (retried after a back-off)",
+            self.errors.clone(),
+        );
+        registry.register(
+            "replication_sequence",
+            "Sequence number of the last replication diff applied to the data (0: none)",
+            self.sequence.clone(),
+        );
+        registry.register(
+            "replication_lag_seconds",
+            "Seconds from the timestamp of the data's last diff to now",
+            self.lag_seconds.clone(),
+        );
+    }
 }
 
 /// Counters of the work replicas share (all zero on SQLite but `roof_jobs_*`).
@@ -204,6 +245,8 @@ impl Default for Metrics {
         registry.register("generations", "Meshes generated", generations.clone());
         let replicas = ReplicaMetrics::default();
         replicas.register(&mut registry);
+        let replication = ReplicationMetrics::default();
+        replication.register(&mut registry);
         registry.register(
             "tile_store_write_failures",
             "Generated tiles not written to the database (served all the same)",
@@ -228,6 +271,7 @@ impl Default for Metrics {
             memory_cache_bytes,
             replicas,
             connections_open,
+            replication,
         }
     }
 }

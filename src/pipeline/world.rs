@@ -65,10 +65,15 @@ pub async fn leaf_content(
     .await
 }
 
-/// The root tileset file's `asset.extras`: how many data tiles the tree was made from, and the
-/// extent of its buildings (`root`: the summary of tile 0/0/0).
-pub fn root_extras(data_tiles: usize, root: Option<&TileSummary>) -> serde_json::Value {
-    json!({
+/// The root tileset file's `asset.extras`: how many data tiles the tree was made from, the
+/// extent of its buildings (`root`: the summary of tile 0/0/0), and the last replication diff
+/// in the data.
+pub fn root_extras(
+    data_tiles: usize,
+    root: Option<&TileSummary>,
+    replication: Option<&crate::source::data_tiles::ReplicationState>,
+) -> serde_json::Value {
+    let mut v = json!({
         "citymesh": {
             "dataTiles": data_tiles,
             "extent": root.map(|s| {
@@ -76,5 +81,10 @@ pub fn root_extras(data_tiles: usize, root: Option<&TileSummary>) -> serde_json:
                 [r.west, r.south, r.east, r.north]
             }),
         }
-    })
+    });
+    // How fresh the data is: the last replication diff applied, when one was.
+    if let Some(r) = replication {
+        v["citymesh"]["replication"] = json!({"sequence": r.sequence, "timestamp": r.timestamp});
+    }
+    v
 }

@@ -26,6 +26,44 @@ pub struct Health {
     /// How far the world tileset's summaries are made (`GET /3dtiles/tileset.json` without a
     /// box answers 503 until `ready`).
     pub world: crate::cache::SummaryProgress,
+    /// How fresh the imported data is: the last replication diff applied (`citymesh
+    /// replicate`, `serve --replicate-url`), or null when none was.
+    pub replication: Option<Freshness>,
+}
+
+/// The last replication diff applied to the data.
+#[derive(Debug, Clone, Serialize, ToSchema)]
+pub struct Freshness {
+    /// Its sequence number in the feed.
+    pub sequence: i64,
+    /// The feed's time of it (ISO 8601, UTC): the data holds OpenStreetMap as it was then.
+    #[schema(example = "2026-12-07T10:00:00Z")]
+    pub timestamp: String,
+    /// The feed it came from.
+    pub url: String,
+    /// When it was applied, Unix seconds.
+    pub applied_at: i64,
+    /// Seconds from `timestamp` to now: how far behind OpenStreetMap the data is.
+    pub age_s: Option<i64>,
+}
+
+/// The data's freshness, read from the database (`None` when no diff was applied, or the
+/// database does not answer).
+pub async fn freshness(state: &AppState) -> Option<Freshness> {
+    let store = crate::source::data_tiles::OsmTileStore::new(state.database.clone());
+    let s = store.replication_state().await.ok()??;
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs() as i64);
+    let age_s = crate::source::data_tiles::replication::feed::unix_seconds(&s.timestamp)
+        .map(|t| (now - t).max(0));
+    Some(Freshness {
+        sequence: s.sequence,
+        timestamp: s.timestamp,
+        url: s.url,
+        applied_at: s.applied_at,
+        age_s,
+    })
 }
 
 /// How the database answered.
@@ -77,5 +115,6 @@ pub async fn health(State(state): State<AppState>) -> Result<Json<Health>, AppEr
         buildings: state.generator.source.summary(),
         roof_classifier: state.classifier.as_ref().map(|c| c.model_id().to_owned()),
         world: state.summaries.progress(),
+        replication: freshness(&state).await,
     }))
 }

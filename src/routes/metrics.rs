@@ -25,6 +25,11 @@ pub async fn metrics(State(state): State<AppState>) -> Response {
     gauges
         .get_or_create(&CacheNameLabels { cache: "budget" })
         .set(i64::try_from(state.memory_budget.total).unwrap_or(i64::MAX));
+    if let Some(f) = super::health::freshness(&state).await {
+        let r = &state.generator.metrics.replication;
+        r.sequence.set(f.sequence);
+        r.lag_seconds.set(f.age_s.unwrap_or(0));
+    }
     (
         [(
             header::CONTENT_TYPE,

@@ -29,11 +29,14 @@ const SUMMARIES_RETRY_SECS: u64 = 5;
 
 /// The root tileset file of the world tree (`tileset.json` without a box).
 pub async fn world_tileset(state: &AppState, query: &TilesetQuery) -> Result<Response, AppError> {
+    let store = crate::source::data_tiles::OsmTileStore::new(state.database.clone());
+    let replication = store.replication_state().await?;
     tileset_file(
         state,
         TileCoord { z: 0, x: 0, y: 0 },
         ROOT_PREFIX,
         &content_query(query),
+        replication.as_ref(),
     )
 }
 
@@ -43,6 +46,7 @@ fn tileset_file(
     top: TileCoord,
     prefix: &str,
     query: &str,
+    replication: Option<&crate::source::data_tiles::ReplicationState>,
 ) -> Result<Response, AppError> {
     let summaries = &state.summaries;
     if !summaries.is_ready() {
@@ -62,6 +66,7 @@ fn tileset_file(
         root_extras(
             summaries.progress().data_tiles,
             summaries.get(&TileCoord { z: 0, x: 0, y: 0 }).as_deref(),
+            replication,
         )
     });
     let json = world_tileset_json(top, &|t| summaries.world_tile(t), prefix, query, extras)
@@ -139,7 +144,7 @@ pub async fn world_file(
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
     let (tile, ext) = parse_world(path)?;
     if ext == "json" {
-        return tileset_file(&state, tile, FILE_PREFIX, &content_query(&query));
+        return tileset_file(&state, tile, FILE_PREFIX, &content_query(&query), None);
     }
     let Some(listed) = state.summaries.world_tile(tile) else {
         return Err(if state.summaries.is_ready() {

@@ -67,6 +67,9 @@ pub async fn build_state_with_clock(args: &ServeArgs, clock: Clock) -> anyhow::R
             .await?;
         tracing::info!(replica = %replica, "sharing PostgreSQL with other replicas");
     }
+    if let Some(url) = &args.replicate_url {
+        follow_feed(args, url, &database, &generator, &replica).await?;
+    }
     Ok(AppState::new(ServerState {
         database,
         classifier,
@@ -83,4 +86,66 @@ pub async fn build_state_with_clock(args: &ServeArgs, clock: Clock) -> anyhow::R
         demo,
         assets_dir: args.assets_dir.clone(),
     }))
+}
+
+/// Follows a replication feed in the background (`--replicate-url`): each diff applied drops
+/// what it changed from the memory caches through the source's announcements, as a refresh
+/// does (the stored tiles went in the diff's own step).
+async fn follow_feed(
+    args: &ServeArgs,
+    url: &str,
+    database: &db::Database,
+    generator: &crate::pipeline::Generator,
+    replica: &str,
+) -> anyhow::Result<()> {
+    use crate::source::data_tiles::OsmTileStore;
+    use crate::source::data_tiles::replication::feed::{Feed, FollowTiming, follow};
+    anyhow::ensure!(
+        args.osm.is_empty() && generator.source.fingerprint() == "tiles",
+        "--replicate-url follows a feed over imported data: serve the database the data was \
+         imported into, without --osm"
+    );
+    let feed = Feed::new(url)?;
+    let store = OsmTileStore::new(database.clone());
+    let tiles = TileStore::open(database, u64::MAX, replica).await?;
+    let timing = FollowTiming {
+        interval: Duration::from_secs(args.replicate_interval_s),
+        max_backoff: Duration::from_secs(600),
+    };
+    let (source, metrics) = (generator.source.clone(), generator.metrics.clone());
+    let failures = metrics.clone();
+    let from = args.replicate_from_sequence;
+    let stopping = generator.stopping.clone();
+    tokio::spawn(async move {
+        let work = follow(
+            store,
+            tiles,
+            feed,
+            from,
+            timing,
+            move |r| {
+                metrics.replication.diffs_applied.inc();
+                if let Some(s) = r.sequence {
+                    metrics.replication.sequence.set(s);
+                }
+                for area in &r.areas {
+                    source.changed_here(area);
+                }
+                tracing::info!(
+                    sequence = r.sequence,
+                    buildings = r.buildings_changed,
+                    tiles_dropped = r.tiles_dropped,
+                    "replication diff applied"
+                );
+            },
+            move |_| {
+                failures.replication.errors.inc();
+            },
+        );
+        tokio::select! {
+            () = stopping.cancelled() => {}
+            () = work => {}
+        }
+    });
+    Ok(())
 }

@@ -132,6 +132,10 @@ pub trait BuildingSource: Send + Sync {
     /// of it in memory. Sources that read nothing shared hold nothing to drop.
     fn changed_elsewhere(&self, _area: Option<&GeoBbox>) {}
 
+    /// This process changed the stored data over `area` (a replication diff applied by the
+    /// server): drop what is held of it and announce it to the subscribers, as a refresh does.
+    fn changed_here(&self, _area: &GeoBbox) {}
+
     /// Part of every generated tile's cache key: changes when the source's data changes in a way
     /// it does not announce (files edited between runs).
     fn fingerprint(&self) -> &str;

@@ -16,6 +16,7 @@ use citymesh::source::data_tiles::replication::feed::{Feed, catch_up, sequence_p
 use citymesh_core::building::cluster::record_bounds;
 use citymesh_core::geo::{GeoBbox, TileCoord};
 use citymesh_core::osm::{BuildingRecord, OsmBuildings, OsmId, read_buildings, unpack};
+use clap::Parser as _;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -687,4 +688,116 @@ async fn a_kill_during_the_diffs_loses_and_repeats_nothing() {
         .unwrap()
         .unwrap();
     assert_eq!(s.sequence, DIFFS as i64);
+}
+
+/// Polls `/health` until the data is at `sequence` (a minute at most).
+async fn until_sequence(app: &axum::Router, sequence: i64) -> serde_json::Value {
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    loop {
+        let h = get(app, "/health").await.json();
+        if h["replication"]["sequence"] == sequence {
+            return h;
+        }
+        assert!(
+            std::time::Instant::now() < deadline,
+            "the server never applied sequence {sequence}: {h}"
+        );
+        tokio::time::sleep(std::time::Duration::from_millis(50)).await;
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_server_following_a_feed_serves_each_change_and_says_how_fresh_it_is() {
+    let dir = tempfile::tempdir().unwrap();
+    let db_path = dir.path().join("c.sqlite");
+    let db = sqlite(&db_path).await;
+    import_into(&[kirchfeld()], &db, true).await.unwrap();
+    let feed_dir = dir.path().join("feed");
+    std::fs::create_dir_all(&feed_dir).unwrap();
+    std::fs::write(feed_dir.join("state.txt"), state_txt(40)).unwrap();
+    let url = serve_folder(feed_dir.clone()).await;
+    let args = citymesh::cli::ServeArgs::parse_from([
+        "serve",
+        "--offline",
+        "--dem-dir",
+        dem_dir().to_str().unwrap(),
+        "--cache-db",
+        db_path.to_str().unwrap(),
+        "--replicate-url",
+        &url,
+        "--replicate-from-sequence",
+        "41",
+        "--replicate-interval-s",
+        "1",
+    ]);
+    let state = citymesh::server::build_state(&args).await.unwrap();
+    common::world_ready(&state).await;
+    let app = common::app_of(state);
+    let h = get(&app, "/health").await.json();
+    assert!(h["replication"].is_null(), "{h}");
+
+    // The tile drawing a building, held in memory by this server.
+    let osm = read_buildings(&common::osm_bytes("karlsruhe-kirchfeld.osm.pbf")).unwrap();
+    let b = osm
+        .buildings
+        .iter()
+        .filter(|r| matches!(r.id, OsmId::Way(_)) && !r.is_part)
+        .nth(77)
+        .unwrap();
+    let (t, glb) = tile_drawing(&app, b.id, b).await;
+    assert_ne!(row(&glb, b.id).unwrap()["height"], "44.25");
+    let OsmId::Way(id) = b.id else { unreachable!() };
+    publish(
+        &feed_dir,
+        41,
+        &format!(
+            "<modify>{}</modify>",
+            way_xml(
+                id,
+                &closed_refs(b),
+                &[("building", "yes"), ("height", "44.25")]
+            )
+        ),
+    );
+    let h = until_sequence(&app, 41).await;
+    assert_eq!(h["replication"]["timestamp"], "2026-12-07T10:41:00Z");
+    assert_eq!(h["replication"]["url"], url.as_str());
+    assert!(h["replication"]["age_s"].as_i64().unwrap() >= 0);
+    // The same server, no restart: the tile shows the new height.
+    let a = get(&app, &format!("/tiles/16/{}/{}.glb", t.x, t.y)).await;
+    assert_eq!(row(&a.body, b.id).unwrap()["height"], "44.25");
+    // The tileset and the metrics say how fresh it is.
+    let ts = get(&app, "/3dtiles/tileset.json").await.json();
+    assert_eq!(
+        ts["asset"]["extras"]["citymesh"]["replication"],
+        serde_json::json!({"sequence": 41, "timestamp": "2026-12-07T10:41:00Z"})
+    );
+    let m = get(&app, "/metrics").await.text();
+    assert!(
+        m.contains("citymesh_replication_diffs_applied_total 1\n"),
+        "{m}"
+    );
+    assert!(m.contains("citymesh_replication_sequence 41\n"), "{m}");
+    assert!(m.contains("citymesh_replication_lag_seconds "), "{m}");
+    // A broken diff: the server keeps serving the last good data and counts the error.
+    publish_bytes(&feed_dir, 42, b"not gzip, not xml");
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    loop {
+        let m = get(&app, "/metrics").await.text();
+        if !m.contains("citymesh_replication_errors_total 0\n") {
+            break;
+        }
+        assert!(
+            std::time::Instant::now() < deadline,
+            "the error was never counted"
+        );
+        tokio::time::sleep(std::time::Duration::from_millis(50)).await;
+    }
+    let a = get(&app, &format!("/tiles/16/{}/{}.glb", t.x, t.y)).await;
+    assert_eq!(a.status, StatusCode::OK);
+    assert_eq!(row(&a.body, b.id).unwrap()["height"], "44.25");
+    assert_eq!(
+        get(&app, "/health").await.json()["replication"]["sequence"],
+        41
+    );
 }

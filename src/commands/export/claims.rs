@@ -125,6 +125,11 @@ impl RowLike for sqlx::postgres::PgRow {
 }
 
 impl Claims {
+    /// The database the claims (and the exported data) are in.
+    pub(super) fn database(&self) -> &Database {
+        &self.db
+    }
+
     /// The units of export `export` (`describe` says what it writes, for a person reading the
     /// table), planned as `units` if no exporter planned them yet: every exporter of the same
     /// export plans the same units, and the first to commit writes them.

@@ -135,9 +135,15 @@ async fn world_unit(ex: &Exporter<'_>, unit: &Claimed) -> anyhow::Result<(i64, O
     let lookup = |t: TileCoord| held.get(&summary_tile(t)).map(|s| WorldTile::of(t, s));
     let (prefix, extras) = if top.z == 0 {
         let root = held.get(&top).map(AsRef::as_ref);
+        let store = crate::source::data_tiles::OsmTileStore::new(ex.claims.database().clone());
+        let replication = store.replication_state().await?;
         (
             ROOT_PREFIX,
-            Some(root_extras(ex.scope.data_tile_count(), root)),
+            Some(root_extras(
+                ex.scope.data_tile_count(),
+                root,
+                replication.as_ref(),
+            )),
         )
     } else {
         (FILE_PREFIX, None)

@@ -444,6 +444,15 @@ impl BuildingSource for DataTileSource {
         }
     }
 
+    fn changed_here(&self, area: &GeoBbox) {
+        self.changed_elsewhere(Some(area));
+        // No subscriber is an error to ignore: nothing was generated yet.
+        let _ = self.changes.send(DataChanged {
+            area: *area,
+            first_fetch: false,
+        });
+    }
+
     fn fingerprint(&self) -> &str {
         "tiles"
     }

@@ -54,6 +54,9 @@ pub struct DiffReport {
     /// Generated tiles (XYZ, 3D Tiles, scenes' rows) dropped.
     pub tiles_dropped: u64,
     pub seconds: f64,
+    /// The areas made stale (each changed building's outlines grown by the data margin).
+    #[serde(skip)]
+    pub areas: Vec<GeoBbox>,
 }
 
 /// The data tiles (zoom 14) a box overlaps.
@@ -207,6 +210,7 @@ pub async fn apply_change(
             .filter_map(|(r, _)| grown(&citymesh_core::building::cluster::record_bounds(r))),
     );
     w.note_changed_areas(&areas).await?;
+    report.areas = areas;
     if let Some(state) = &state {
         w.set_replication_state(state).await?;
     }
