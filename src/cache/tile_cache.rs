@@ -86,6 +86,11 @@ pub struct TileCache {
 }
 
 impl TileCache {
+    /// The data version its rows are made for (generator, DEM, source).
+    pub fn data_version(&self) -> &str {
+        &self.data_version
+    }
+
     /// `memory_bytes` in all: three quarters for tiles, a quarter for box scenes.
     pub fn new(
         store: TileStore,

@@ -65,6 +65,24 @@ pub async fn leaf_content(
     .await
 }
 
+/// `tile` with its content version salted with the data version (generator, DEM, source), so
+/// a content URL names everything its bytes are made from.
+pub fn versioned(
+    mut tile: citymesh_core::tiles3d::WorldTile,
+    data_version: &str,
+) -> citymesh_core::tiles3d::WorldTile {
+    let seed = xxhash_rust::xxh3::xxh3_64(data_version.as_bytes());
+    tile.version = tile
+        .version
+        .map(|v| xxhash_rust::xxh3::xxh3_64_with_seed(&v.to_le_bytes(), seed));
+    tile
+}
+
+/// The version a content URL names (`?v=`), as written.
+pub fn version_text(version: u64) -> String {
+    format!("{version:016x}")
+}
+
 /// The root tileset file's `asset.extras`: how many data tiles the tree was made from, the
 /// extent of its buildings (`root`: the summary of tile 0/0/0), and the last replication diff
 /// in the data.

@@ -45,6 +45,13 @@ pub struct TilesetQuery {
     /// content tile's URI).
     #[param(inline)]
     pub tags: Option<TagsParam>,
+    /// The version of the content's data, as the world tileset names it in each content URI
+    /// (16 hex digits): a URL with it never changes meaning, and is answered with
+    /// `Cache-Control: public, max-age=31536000, immutable`; a version that is no longer the
+    /// data's is 404 `stale_version` (fetch the tileset again). Without it, content is
+    /// revalidated after a minute.
+    #[param(example = "3f9c2a41d07be815")]
+    pub v: Option<String>,
 }
 
 /// How a tileset lists its tiles, as asked with `?tiling=`.
@@ -168,7 +175,8 @@ fn parse_implicit(level: &str, x: &str, y: &str, ext: &str) -> Result<ImplicitTi
 /// `--osm` files); a server that fetches data by area needs it.
 #[utoipa::path(get, path = "/3dtiles/tileset.json", tag = "3d tiles", params(TilesetQuery),
     responses(
-        (status = 200, description = "The tileset", body = Object),
+        (status = 200, description = "The tileset (the world tileset with an ETag and `Cache-Control: public, max-age=60`)", body = Object),
+        (status = 304, description = "Not modified: the If-None-Match ETag is current (the world tileset)"),
         (status = 400, description = "The bbox is malformed or too large, or needed and missing", body = ErrorBody),
         (status = 500, description = "An internal failure; the server log has the cause", body = ErrorBody),
         (status = 502, description = "Overpass failed or sent an incomplete answer; nothing was stored", body = ErrorBody),
@@ -177,11 +185,12 @@ fn parse_implicit(level: &str, x: &str, y: &str, ext: &str) -> Result<ImplicitTi
     ))]
 pub async fn tileset(
     State(state): State<AppState>,
+    request_headers: axum::http::HeaderMap,
     query: Result<Query<TilesetQuery>, QueryRejection>,
 ) -> Result<Response, AppError> {
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
     if query.bbox.is_none() {
-        return super::world::world_tileset(&state, &query).await;
+        return super::world::world_tileset(&state, &request_headers, &query).await;
     }
     let root = root_for(&state, query.bbox.as_deref())?;
     let pitched = query.roofs.unwrap_or_default() != RoofsParam::Osm;

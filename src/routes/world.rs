@@ -9,30 +9,39 @@ use super::schemas::GlbBytes;
 use super::tiles3d::{CONTENT_ENCODING, TilesetQuery, content_query};
 use crate::cache::TileKey;
 use crate::error::{AppError, ErrorBody};
+use crate::pipeline::RoofsParam;
 use crate::pipeline::world::{
-    FILE_PREFIX, ROOT_PREFIX, block_buildings, block_content, root_extras,
+    FILE_PREFIX, ROOT_PREFIX, block_buildings, block_content, root_extras, version_text, versioned,
 };
 use crate::state::AppState;
-use axum::Json;
 use axum::extract::rejection::{PathRejection, QueryRejection};
 use axum::extract::{Path, Query, State};
-use axum::http::{HeaderMap, header};
-use axum::response::{IntoResponse, Response};
+use axum::http::{HeaderMap, HeaderValue, header};
+use axum::response::Response;
 use citymesh_core::geo::TileCoord;
 use citymesh_core::tiles3d::{DATA_ZOOM, LEAF_ZOOM, world_tileset_json};
 
-/// Content changes only when its data does: kept an hour, then revalidated with the ETag.
-const CONTENT_CACHE_CONTROL: &str = "public, max-age=3600";
+/// Content under a versioned URL (`?v=` the data's version): it never changes meaning.
+const VERSIONED_CACHE_CONTROL: &str = "public, max-age=31536000, immutable";
+
+/// Content and tileset files under URLs without a version: kept a minute, then revalidated
+/// with the ETag (the data may follow a replication feed).
+const SHORT_CACHE_CONTROL: &str = "public, max-age=60";
 
 /// How long a client should wait for the summaries to be made.
 const SUMMARIES_RETRY_SECS: u64 = 5;
 
 /// The root tileset file of the world tree (`tileset.json` without a box).
-pub async fn world_tileset(state: &AppState, query: &TilesetQuery) -> Result<Response, AppError> {
+pub async fn world_tileset(
+    state: &AppState,
+    request_headers: &HeaderMap,
+    query: &TilesetQuery,
+) -> Result<Response, AppError> {
     let store = crate::source::data_tiles::OsmTileStore::new(state.database.clone());
     let replication = store.replication_state().await?;
     tileset_file(
         state,
+        request_headers,
         TileCoord { z: 0, x: 0, y: 0 },
         ROOT_PREFIX,
         &content_query(query),
@@ -43,6 +52,7 @@ pub async fn world_tileset(state: &AppState, query: &TilesetQuery) -> Result<Res
 /// A tileset file of the world tree whose root is `top`.
 fn tileset_file(
     state: &AppState,
+    request_headers: &HeaderMap,
     top: TileCoord,
     prefix: &str,
     query: &str,
@@ -69,17 +79,44 @@ fn tileset_file(
             replication,
         )
     });
-    let json = world_tileset_json(top, &|t| summaries.world_tile(t), prefix, query, extras)
-        .ok_or_else(|| {
-            AppError::not_found(
-                "no_such_tile",
-                format!(
-                    "{}/{}/{} holds no data: the tree only has tiles where buildings are",
-                    top.z, top.x, top.y
-                ),
-            )
-        })?;
-    Ok(([(header::CACHE_CONTROL, "public, max-age=300")], Json(json)).into_response())
+    // Content versions (immutable URLs) only where the content depends on the data alone:
+    // classified and inferred roofs change as predictions and priors come in.
+    let versions = !query.contains("roofs=");
+    let data_version = state.tiles.data_version();
+    let lookup = |t: TileCoord| {
+        summaries.world_tile(t).map(|w| {
+            let mut w = versioned(w, data_version);
+            if !versions {
+                w.version = None;
+            }
+            w
+        })
+    };
+    let json = world_tileset_json(top, &lookup, prefix, query, extras).ok_or_else(|| {
+        AppError::not_found(
+            "no_such_tile",
+            format!(
+                "{}/{}/{} holds no data: the tree only has tiles where buildings are",
+                top.z, top.x, top.y
+            ),
+        )
+    })?;
+    let body = bytes::Bytes::from(
+        serde_json::to_vec(&json).map_err(|e| AppError::Internal(e.to_string()))?,
+    );
+    let mut headers = HeaderMap::new();
+    headers.insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static("application/json"),
+    );
+    let etag = crate::cache::etag_header(None, &body);
+    Ok(super::conditional::conditional_response(
+        request_headers,
+        body,
+        etag,
+        headers,
+        SHORT_CACHE_CONTROL,
+    ))
 }
 
 /// A tile of the world tree from its path: `{y}` ends in `.json` or `.glb`.
@@ -125,11 +162,11 @@ fn parse_world(
         (status = 200, description = "The tileset file (JSON) or the content (GLB)", content_type = "model/gltf-binary", body = inline(GlbBytes),
             headers(
                 ("ETag" = String, description = "Strong validator of the content bytes"),
-                ("Cache-Control" = String, description = "`public, max-age=3600` for content, `public, max-age=300` for tileset files"),
+                ("Cache-Control" = String, description = "`public, max-age=31536000, immutable` for content under a current `?v=` version, else `public, max-age=60` (tileset files, content without `v`)"),
             )),
         (status = 304, description = "Not modified: the If-None-Match ETag is current"),
         (status = 400, description = "A coordinate is malformed", body = ErrorBody),
-        (status = 404, description = "No such tile (no data under it, or below the leaves), or the name ends neither in .json nor .glb", body = ErrorBody),
+        (status = 404, description = "No such tile (no data under it, or below the leaves), the name ends neither in .json nor .glb, or `stale_version`: the `?v=` version is no longer the data's (fetch the tileset again)", body = ErrorBody),
         (status = 500, description = "An internal failure; the server log has the cause", body = ErrorBody),
         (status = 502, description = "Overpass failed or sent an incomplete answer; nothing was stored", body = ErrorBody),
         (status = 503, description = "The summaries are still being made, Overpass is rate limiting, or every generation slot is busy; see Retry-After", body = ErrorBody),
@@ -144,7 +181,14 @@ pub async fn world_file(
     let Query(query) = query.map_err(|e| AppError::bad_request("invalid_query", e.body_text()))?;
     let (tile, ext) = parse_world(path)?;
     if ext == "json" {
-        return tileset_file(&state, tile, FILE_PREFIX, &content_query(&query), None);
+        return tileset_file(
+            &state,
+            &request_headers,
+            tile,
+            FILE_PREFIX,
+            &content_query(&query),
+            None,
+        );
     }
     let Some(listed) = state.summaries.world_tile(tile) else {
         return Err(if state.summaries.is_ready() {
@@ -166,6 +210,28 @@ pub async fn world_file(
             "this tile has no content: it only leads to its children",
         ));
     }
+    // A versioned URL is answered only while it names the data's version.
+    let cache_control = match &query.v {
+        None => SHORT_CACHE_CONTROL,
+        Some(_) if query.roofs.is_some_and(|r| r != RoofsParam::Osm) => SHORT_CACHE_CONTROL,
+        Some(v) => {
+            let current = versioned(listed, state.tiles.data_version()).version;
+            match current.map(version_text) {
+                Some(c) if c == *v => VERSIONED_CACHE_CONTROL,
+                Some(c) => {
+                    return Err(AppError::not_found(
+                        "stale_version",
+                        format!(
+                            "version {v} of {}/{}/{} is gone: its data changed (now {c}); \
+                             fetch the tileset again for the current URLs",
+                            tile.z, tile.x, tile.y
+                        ),
+                    ));
+                }
+                None => SHORT_CACHE_CONTROL,
+            }
+        }
+    };
     let encoding = encoding_for(query.encoding, &request_headers, CONTENT_ENCODING);
     let key = TileKey::world(tile).with_encoding(encoding);
     if tile.z > DATA_ZOOM {
@@ -176,11 +242,11 @@ pub async fn world_file(
             &request_headers,
             key,
             query.roofs.unwrap_or_default(),
-            CONTENT_CACHE_CONTROL,
+            cache_control,
         )
         .await;
     }
-    block_tile(&state, &request_headers, tile, key).await
+    block_tile(&state, &request_headers, tile, key, cache_control).await
 }
 
 /// A tile of blocks, from its summary alone (roofs are flat whatever `roofs` asks).
@@ -189,6 +255,7 @@ async fn block_tile(
     request_headers: &HeaderMap,
     tile: TileCoord,
     key: TileKey,
+    cache_control: &'static str,
 ) -> Result<Response, AppError> {
     let summary = state
         .summaries
@@ -207,5 +274,5 @@ async fn block_tile(
             },
         )
         .await?;
-    super::conditional::cached_response(request_headers, cached, level, CONTENT_CACHE_CONTROL).await
+    super::conditional::cached_response(request_headers, cached, level, cache_control).await
 }

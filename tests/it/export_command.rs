@@ -371,6 +371,8 @@ fn every_vertex_of_a_kirchfeld_export_lies_inside_its_tiles_region() {
 
 /// The way from tileset file `base` to `uri` (relative, with `..`).
 fn resolve(base: &str, uri: &str) -> String {
+    // A file's name is its path: `?v=` names the version of its data, not another file.
+    let uri = uri.split('?').next().unwrap_or(uri);
     let mut parts: Vec<&str> = base.split('/').collect();
     parts.pop();
     for p in uri.split('/') {
@@ -732,15 +734,17 @@ fn two_exporters_on_one_postgres_share_an_s3_export_and_one_killed_is_taken_over
             .env("AWS_SECRET_ACCESS_KEY", "test");
         c
     };
+    // The first is killed (SIGKILL) once it has a unit done, with its other under way (it
+    // works on two at once); the second starts then, so it cannot have claimed every unit
+    // left before the kill, and takes the killed one's over when its lease runs out.
     let mut killed = worker(false).stdout(Stdio::piped()).spawn().unwrap();
-    let report = dir.path().join("survivor.json");
-    let mut survivor = worker(true).arg("--report").arg(&report).spawn().unwrap();
-    // Killed (SIGKILL) once the export has a unit done, with units of its own under way.
     let mut lines = BufReader::new(killed.stdout.take().unwrap()).lines();
     let first = lines.next().unwrap().unwrap();
     assert!(first.contains(" files ("), "{first}");
     killed.kill().unwrap();
     killed.wait().unwrap();
+    let report = dir.path().join("survivor.json");
+    let mut survivor = worker(true).arg("--report").arg(&report).spawn().unwrap();
     assert!(survivor.wait().unwrap().success());
     let survived: serde_json::Value =
         serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();

@@ -690,6 +690,31 @@ async fn a_kill_during_the_diffs_loses_and_repeats_nothing() {
     assert_eq!(s.sequence, DIFFS as i64);
 }
 
+/// The version the world tileset names for leaf `t` (`?v=`), from the zoom-12 file holding it.
+async fn leaf_version(app: &axum::Router, t: &TileCoord) -> String {
+    let file = format!("/3dtiles/world/12/{}/{}.json", t.x >> 3, t.y >> 3);
+    let text = get(app, &file).await.text();
+    let at = format!("15/{}/{}.glb?v=", t.x, t.y);
+    let i = text
+        .find(&at)
+        .unwrap_or_else(|| panic!("{file} lists no {at}"))
+        + at.len();
+    text[i..i + 16].to_owned()
+}
+
+/// The world leaf drawing a building.
+async fn leaf_drawing(app: &axum::Router, id: OsmId, near: &BuildingRecord) -> TileCoord {
+    let b = record_bounds(near);
+    let around = GeoBbox::new(b[0], b[1], b[2], b[3]).unwrap();
+    for t in TileCoord::covering(&around, 15).tiles() {
+        let a = get(app, &format!("/3dtiles/world/15/{}/{}.glb", t.x, t.y)).await;
+        if a.status == StatusCode::OK && row(&a.body, id).is_some() {
+            return t;
+        }
+    }
+    panic!("no world leaf draws {id}");
+}
+
 /// Polls `/health` until the data is at `sequence` (a minute at most).
 async fn until_sequence(app: &axum::Router, sequence: i64) -> serde_json::Value {
     let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
@@ -746,6 +771,46 @@ async fn a_server_following_a_feed_serves_each_change_and_says_how_fresh_it_is()
         .unwrap();
     let (t, glb) = tile_drawing(&app, b.id, b).await;
     assert_ne!(row(&glb, b.id).unwrap()["height"], "44.25");
+    // What a client (or a CDN) holds before the diff: the tileset, with its ETag, and the
+    // versioned URLs of the changed building's leaf and of a leaf far from it.
+    let tileset = get(&app, "/3dtiles/tileset.json").await;
+    assert_eq!(tileset.header("cache-control"), "public, max-age=60");
+    let tileset_etag = tileset.header("etag").to_owned();
+    let revalidated = common::send(
+        &app,
+        axum::http::Request::get("/3dtiles/tileset.json")
+            .header("if-none-match", &tileset_etag)
+            .body(axum::body::Body::empty())
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(revalidated.status, StatusCode::NOT_MODIFIED);
+    let leaf = leaf_drawing(&app, b.id, b).await;
+    let far = osm
+        .buildings
+        .iter()
+        .find(|r| {
+            let rb = record_bounds(r);
+            let bb = record_bounds(b);
+            !r.is_part && ((rb[0] - bb[0]).abs() > 0.01 || (rb[1] - bb[1]).abs() > 0.01)
+        })
+        .unwrap();
+    let far_leaf = leaf_drawing(&app, far.id, far).await;
+    let (old_v, far_v) = (
+        leaf_version(&app, &leaf).await,
+        leaf_version(&app, &far_leaf).await,
+    );
+    let old_url = format!("/3dtiles/world/15/{}/{}.glb?v={old_v}", leaf.x, leaf.y);
+    let far_url = format!(
+        "/3dtiles/world/15/{}/{}.glb?v={far_v}",
+        far_leaf.x, far_leaf.y
+    );
+    let before = get(&app, &old_url).await;
+    assert_eq!(
+        before.header("cache-control"),
+        "public, max-age=31536000, immutable"
+    );
+    let far_before = get(&app, &far_url).await;
     let OsmId::Way(id) = b.id else { unreachable!() };
     publish(
         &feed_dir,
@@ -766,8 +831,42 @@ async fn a_server_following_a_feed_serves_each_change_and_says_how_fresh_it_is()
     // The same server, no restart: the tile shows the new height.
     let a = get(&app, &format!("/tiles/16/{}/{}.glb", t.x, t.y)).await;
     assert_eq!(row(&a.body, b.id).unwrap()["height"], "44.25");
+    // The CDN check. The tree is made again over the change (in the background): wait for the
+    // leaf's new version.
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    let new_v = loop {
+        let v = leaf_version(&app, &leaf).await;
+        if v != old_v {
+            break v;
+        }
+        assert!(
+            std::time::Instant::now() < deadline,
+            "the leaf's version never changed"
+        );
+        tokio::time::sleep(std::time::Duration::from_millis(50)).await;
+    };
+    // The old URL of the changed leaf is gone, clearly; the new one has the change, for good.
+    let stale = get(&app, &old_url).await;
+    assert_eq!(stale.status, StatusCode::NOT_FOUND);
+    assert_eq!(stale.json()["error"], "stale_version", "{}", stale.text());
+    let new_url = format!("/3dtiles/world/15/{}/{}.glb?v={new_v}", leaf.x, leaf.y);
+    let fresh = get(&app, &new_url).await;
+    assert_eq!(
+        fresh.header("cache-control"),
+        "public, max-age=31536000, immutable"
+    );
+    assert_eq!(row(&fresh.body, b.id).unwrap()["height"], "44.25");
+    assert_ne!(fresh.header("etag"), before.header("etag"));
+    // A leaf far from the change keeps its URL and its bytes.
+    assert_eq!(leaf_version(&app, &far_leaf).await, far_v);
+    let far_after = get(&app, &far_url).await;
+    assert_eq!(far_after.status, StatusCode::OK);
+    assert_eq!(far_after.header("etag"), far_before.header("etag"));
+    // The tileset revalidates to a new ETag.
+    let ts = get(&app, "/3dtiles/tileset.json").await;
+    assert_ne!(ts.header("etag"), tileset_etag);
     // The tileset and the metrics say how fresh it is.
-    let ts = get(&app, "/3dtiles/tileset.json").await.json();
+    let ts = ts.json();
     assert_eq!(
         ts["asset"]["extras"]["citymesh"]["replication"],
         serde_json::json!({"sequence": 41, "timestamp": "2026-12-07T10:41:00Z"})

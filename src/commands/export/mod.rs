@@ -76,6 +76,8 @@ pub(crate) struct Exporter<'a> {
     format: Format,
     scope: Scope,
     claims: Claims,
+    /// What content versions are salted with (as the server's).
+    data_version: String,
     workers: usize,
     lease: Duration,
     /// Files written and kept by this run.
@@ -181,6 +183,7 @@ pub async fn run(opened: &OpenedGenerator, args: &ExportArgs) -> anyhow::Result<
         format,
         scope,
         claims,
+        data_version: opened.data_version.clone(),
         workers: args.worker_count(),
         lease: Duration::from_secs_f64(args.lease_s),
         written: AtomicU64::new(0),

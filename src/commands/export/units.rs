@@ -8,6 +8,7 @@
 use super::plan::{UNIT_ZOOM, ancestor, xyz_tiles};
 use super::{Claimed, Exporter, Format};
 use crate::cache::{summarise_data_tile, summarise_parent};
+use crate::pipeline::world::versioned;
 use crate::pipeline::world::{
     FILE_PREFIX, ROOT_PREFIX, block_buildings, block_content, leaf_content, root_extras,
 };
@@ -132,7 +133,10 @@ async fn world_unit(ex: &Exporter<'_>, unit: &Claimed) -> anyhow::Result<(i64, O
     let mut files = contents.len() as i64;
     write_contents(ex, contents).await?;
     // The tileset file, last.
-    let lookup = |t: TileCoord| held.get(&summary_tile(t)).map(|s| WorldTile::of(t, s));
+    let lookup = |t: TileCoord| {
+        held.get(&summary_tile(t))
+            .map(|s| versioned(WorldTile::of(t, s), &ex.data_version))
+    };
     let (prefix, extras) = if top.z == 0 {
         let root = held.get(&top).map(AsRef::as_ref);
         let store = crate::source::data_tiles::OsmTileStore::new(ex.claims.database().clone());

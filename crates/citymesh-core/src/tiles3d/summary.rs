@@ -101,6 +101,63 @@ pub struct TileSummary {
     /// The cells of the tile's 16 x 16 ground grid over data tiles (rows from the south): a
     /// coarse tile draws ground where data is, not over its whole square.
     pub ground_cells: CellMask,
+    /// A digest of the buildings the tile and its descendants are drawn from: for a data tile,
+    /// every building of the set it was summarised from (its square and the margin its leaves
+    /// read); above, its children's digests. Any edit of one of those buildings changes it.
+    pub digest: u64,
+}
+
+/// FNV-1a, 64 bits: a digest that is the same on every machine and in every version.
+#[derive(Clone, Copy)]
+pub(crate) struct Fnv(pub u64);
+
+impl Fnv {
+    pub fn new() -> Self {
+        Fnv(0xcbf2_9ce4_8422_2325)
+    }
+
+    pub fn bytes(mut self, bytes: &[u8]) -> Self {
+        for b in bytes {
+            self.0 ^= u64::from(*b);
+            self.0 = self.0.wrapping_mul(0x0100_0000_01b3);
+        }
+        self
+    }
+
+    pub fn u64(self, v: u64) -> Self {
+        self.bytes(&v.to_le_bytes())
+    }
+}
+
+/// The digest of building records (ids, kinds, every ring node's id and coordinates, tags).
+pub fn records_digest<'a>(records: impl IntoIterator<Item = &'a BuildingRecord>) -> u64 {
+    let mut h = Fnv::new();
+    for r in records {
+        let (kind, id) = match r.id {
+            crate::osm::OsmId::Way(id) => (0u64, id),
+            crate::osm::OsmId::Relation(id) => (1, id),
+        };
+        h = h.u64(kind).u64(id as u64).u64(u64::from(r.is_part));
+        for (role, rings) in [(2u64, &r.outers), (3, &r.inners)] {
+            for ring in rings {
+                h = h.u64(role).u64(ring.nodes.len() as u64);
+                for n in &ring.nodes {
+                    h = h
+                        .u64(n.id.map_or(u64::MAX, |i| i as u64))
+                        .u64(n.lon.to_bits())
+                        .u64(n.lat.to_bits());
+                }
+            }
+        }
+        for (k, v) in &r.tags {
+            h = h
+                .u64(k.len() as u64)
+                .bytes(k.as_bytes())
+                .u64(v.len() as u64)
+                .bytes(v.as_bytes());
+        }
+    }
+    h.0
 }
 
 /// The cell of `tile`'s block grid that holds a point (Web Mercator cells, so a child's cells
@@ -202,7 +259,11 @@ impl TileSummary {
         }
         blocks.sort_by_key(|(c, _)| *c);
         let (lo, hi) = model.height_range_in(&extent);
+        let mut records: Vec<&BuildingRecord> = set.records().iter().map(AsRef::as_ref).collect();
+        records.sort_by_key(|r| r.id);
+        let digest = records_digest(records);
         Some(Self {
+            digest,
             tile,
             groups: groups.len() as u64,
             region: Region::of_bbox(&extent, lo, hi + tallest).grown(SLACK_M),
@@ -227,7 +288,12 @@ impl TileSummary {
         let (mut groups, mut roof_error, mut ground_error) = (0, 0.0f64, 0.0f64);
         let mut blocks: Vec<(u16, Block)> = Vec::new();
         let mut ground_cells = CellMask::NONE;
+        let mut digest = Fnv::new();
         for child in children {
+            digest = digest
+                .u64(u64::from(child.tile.x))
+                .u64(u64::from(child.tile.y))
+                .u64(child.digest);
             // The child's quadrant of this tile's grid: its cells halved.
             let (dx, dy) = (child.tile.x & 1, child.tile.y & 1);
             for row in 0..16 {
@@ -277,6 +343,7 @@ impl TileSummary {
         }
         blocks.sort_by_key(|(c, _)| *c);
         Some(Self {
+            digest: digest.0,
             tile,
             groups,
             region,
@@ -286,6 +353,22 @@ impl TileSummary {
             blocks,
             ground_cells,
         })
+    }
+
+    /// The version of `tile`'s content: for a tile at or above the data tiles (drawn from this,
+    /// its own summary, alone) a digest of the whole summary; for a leaf below this data tile
+    /// (drawn from the buildings around it) the digest of those buildings and the leaf.
+    pub fn content_version(&self, tile: &TileCoord) -> u64 {
+        if tile.z > DATA_ZOOM {
+            Fnv::new()
+                .u64(self.digest)
+                .u64(u64::from(tile.z))
+                .u64(u64::from(tile.x))
+                .u64(u64::from(tile.y))
+                .0
+        } else {
+            Fnv::new().bytes(&self.to_bytes()).0
+        }
     }
 
     /// Whether the tile draws blocks (from [`BLOCK_ZOOM`] to the data tiles).

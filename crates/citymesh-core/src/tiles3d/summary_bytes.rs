@@ -2,11 +2,12 @@
 //! tile store): a versioned, little-endian record, read back exactly or refused (never
 //! misread).
 //!
-//! Layout (version 1): `CMS1`; the tile (`z` u8, `x` u32, `y` u32); `groups` u64; the region
+//! Layout (version 2): `CMS2`; the tile (`z` u8, `x` u32, `y` u32); `groups` u64; the region
 //! (west, south, east, north, lowest, highest: f64); the reach (lon, lat: f64); the roof and
 //! ground errors (f64); the ground cells (4 x u64); the block count (u16, at most 256); each
 //! block: its cell (u16), its id (type u8: 0 way, 1 relation; id i64), the largest footprint,
-//! then groups (u32), area, lon, lat, height (f64). 135 bytes plus 55 per block.
+//! then groups (u32), area, lon, lat, height (f64); the digest (u64). 143 bytes plus 55 per
+//! block. A record of version 1 (no digest) is refused, and the summary made again.
 
 use super::summary::{BLOCK_CELLS, Block, TileSummary};
 use crate::geo::{Region, TileCoord};
@@ -14,7 +15,7 @@ use crate::osm::OsmId;
 use crate::terrain::CellMask;
 
 /// The first bytes of a summary record, with its version.
-const MAGIC: &[u8; 4] = b"CMS1";
+const MAGIC: &[u8; 4] = b"CMS2";
 
 /// Blocks a summary holds at most: one per cell.
 const MAX_BLOCKS: usize = (BLOCK_CELLS * BLOCK_CELLS) as usize;
@@ -22,7 +23,7 @@ const MAX_BLOCKS: usize = (BLOCK_CELLS * BLOCK_CELLS) as usize;
 /// Why bytes are not a summary.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum SummaryBytesError {
-    #[error("not a tile summary of version 1 (the record starts {0:02x?})")]
+    #[error("not a tile summary of version 2 (the record starts {0:02x?})")]
     Version(Vec<u8>),
     #[error("the summary ends early, at byte {0}")]
     Truncated(usize),
@@ -43,7 +44,7 @@ pub enum SummaryBytesError {
 impl TileSummary {
     /// The summary as bytes (read back by [`TileSummary::from_bytes`]).
     pub fn to_bytes(&self) -> Vec<u8> {
-        let mut out = Vec::with_capacity(135 + 55 * self.blocks.len());
+        let mut out = Vec::with_capacity(143 + 55 * self.blocks.len());
         out.extend_from_slice(MAGIC);
         out.push(self.tile.z);
         out.extend_from_slice(&self.tile.x.to_le_bytes());
@@ -84,6 +85,7 @@ impl TileSummary {
                 out.extend_from_slice(&v.to_le_bytes());
             }
         }
+        out.extend_from_slice(&self.digest.to_le_bytes());
         out
     }
 
@@ -140,10 +142,12 @@ impl TileSummary {
                 },
             ));
         }
+        let digest = r.u64()?;
         if r.at != bytes.len() {
             return Err(SummaryBytesError::Trailing(bytes.len() - r.at));
         }
         Ok(Self {
+            digest,
             tile,
             groups,
             region,
@@ -217,6 +221,7 @@ mod tests {
 
     fn summary(blocks: Vec<(u16, Block)>) -> TileSummary {
         TileSummary {
+            digest: 0x0123_4567_89ab_cdef,
             tile: TileCoord::new(14, 8574, 5623).unwrap(),
             groups: 1_460,
             region: Region {
@@ -254,7 +259,7 @@ mod tests {
             (255, block(OsmId::Relation(-5), 80.5)),
         ]);
         let bytes = s.to_bytes();
-        assert_eq!(bytes.len(), 135 + 2 * 55);
+        assert_eq!(bytes.len(), 143 + 2 * 55);
         assert_eq!(TileSummary::from_bytes(&bytes), Ok(s));
     }
 
@@ -277,7 +282,7 @@ mod tests {
             Err(SummaryBytesError::Trailing(1))
         );
         let mut other = bytes.clone();
-        other[3] = b'2';
+        other[3] = b'1'; // a version 1 record (no digest) is made again, not misread
         assert!(matches!(
             TileSummary::from_bytes(&other),
             Err(SummaryBytesError::Version(_))

@@ -50,6 +50,9 @@ pub struct WorldTile {
     pub geometric_error: f64,
     /// Whether the tile has a content GLB.
     pub content: bool,
+    /// What its content is made from, as a number ([`TileSummary::content_version`]); `None`
+    /// for a tile whose data is not fetched yet (its content will change).
+    pub version: Option<u64>,
 }
 
 /// The lowest ground an unfetched tile's region reaches down to: below the lowest land (the
@@ -77,6 +80,7 @@ impl WorldTile {
                 region: summary.region_below(&tile),
                 geometric_error: 0.0,
                 content: true,
+                version: Some(summary.content_version(&tile)),
             };
         }
         let geometric_error = if summary.draws_blocks() {
@@ -91,6 +95,7 @@ impl WorldTile {
             region: summary.region,
             geometric_error,
             content: tile.z >= BLOCK_ZOOM,
+            version: Some(summary.content_version(&tile)),
         }
     }
 }
@@ -130,6 +135,7 @@ impl WorldTile {
             region,
             geometric_error,
             content: tile.z > DATA_ZOOM,
+            version: None,
         }
     }
 
@@ -141,6 +147,7 @@ impl WorldTile {
             region: self.region.union(&unfetched.region),
             geometric_error: self.geometric_error.max(unfetched.geometric_error),
             content: self.content,
+            version: self.version,
         }
     }
 }
@@ -221,7 +228,14 @@ fn listed(
         "geometricError": tile.geometric_error,
     });
     if tile.content {
-        v["content"] = json!({"uri": uri(&t, "glb")});
+        // Content names the version of what it is made from, so its URL never changes meaning.
+        let u = uri(&t, "glb");
+        let u = match tile.version {
+            Some(version) if u.contains('?') => format!("{u}&v={version:016x}"),
+            Some(version) => format!("{u}?v={version:016x}"),
+            None => u,
+        };
+        v["content"] = json!({ "uri": u });
     }
     if t.z >= LEAF_ZOOM {
         return v;
