@@ -29,7 +29,7 @@ pub use change::{Action, OsmChange, read_change};
 pub use packed::{PACKED_VERSION, REPAIRS, is_packed, pack, pack_parts, unpack};
 pub use pbf::relation_members;
 pub use raw::{Member, MemberKind, RawOsm, RawRelation, RawWay, Tags};
-pub use update::{ChangeError, Lookups, Rebuilt, rebuild, update_tile};
+pub use update::{ChangeError, Lookups, Rebuilt, rebuild, touched_part, update_tile};
 pub use write::write_overpass_json;
 
 /// The OSM formats citymesh reads.

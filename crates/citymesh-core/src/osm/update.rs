@@ -75,6 +75,47 @@ impl Lookups {
     }
 }
 
+/// The part of a stored data tile that [`rebuild`] needs for `change`: the buildings it may
+/// touch, and those holding a node or member way the change refers to (for their
+/// coordinates). Taken tile by tile, so a change over many tiles never holds them all.
+pub fn touched_part(tile: &OsmBuildings, change: &OsmChange, lookups: &Lookups) -> OsmBuildings {
+    let mut out = OsmBuildings::default();
+    for r in &tile.buildings {
+        let named = match r.id {
+            OsmId::Way(w) => lookups.ways.contains(&w),
+            OsmId::Relation(rel) => {
+                change.relations.contains_key(&rel)
+                    || tile
+                        .member_ways
+                        .iter()
+                        .find(|m| m.relation == rel)
+                        .is_some_and(|m| {
+                            m.ways.iter().any(|w| lookups.ways.contains(w))
+                                || m.refs.iter().flatten().any(|n| lookups.nodes.contains(n))
+                        })
+            }
+        };
+        let nodes = r
+            .outers
+            .iter()
+            .chain(&r.inners)
+            .flat_map(|ring| &ring.nodes);
+        if named
+            || nodes
+                .filter_map(|n| n.id)
+                .any(|n| lookups.nodes.contains(&n))
+        {
+            out.buildings.push(r.clone());
+            if let OsmId::Relation(rel) = r.id
+                && let Some(m) = tile.member_ways.iter().find(|m| m.relation == rel)
+            {
+                out.member_ways.push(m.clone());
+            }
+        }
+    }
+    out
+}
+
 /// What a change makes of the buildings it touches.
 #[derive(Debug, Default)]
 pub struct Rebuilt {

@@ -15,10 +15,10 @@ use super::elements_of;
 use crate::cache::TileStore;
 use citymesh_core::geo::{GeoBbox, TileCoord};
 use citymesh_core::osm::{
-    BuildingRecord, ChangeError, Lookups, OsmBuildings, OsmChange, pack, rebuild, unpack,
-    update_tile,
+    BuildingRecord, ChangeError, Lookups, OsmBuildings, OsmChange, pack, rebuild, touched_part,
+    unpack, update_tile,
 };
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeSet;
 
 /// Why a change was not applied (nothing of it was).
 #[derive(Debug, thiserror::Error)]
@@ -117,20 +117,27 @@ pub async fn apply_change(
         w.tiles_holding(K::Relation, lookups.relations.iter().copied())
             .await?,
     );
-    let mut held: BTreeMap<TileCoord, OsmBuildings> = BTreeMap::new();
+    // Only what the change may touch is kept of each tile: a diff over many tiles holds one
+    // tile at a time.
+    let change = std::sync::Arc::new(change);
+    let lookups = std::sync::Arc::new(lookups);
+    let mut parts: Vec<OsmBuildings> = Vec::new();
     for t in candidates {
         if let Some(body) = w.get_body(&t).await? {
-            held.insert(t, unpack(&body)?);
+            let (c, l) = (change.clone(), lookups.clone());
+            let part = tokio::task::spawn_blocking(move || {
+                unpack(&body).map(|tile| touched_part(&tile, &c, &l))
+            })
+            .await??;
+            parts.push(part);
         }
     }
-    let (held, rebuilt) = tokio::task::spawn_blocking(move || {
-        let tiles: Vec<&OsmBuildings> = held.values().collect();
-        let rebuilt = rebuild(&tiles, &change);
-        (held, rebuilt)
+    let c = change.clone();
+    let rebuilt = tokio::task::spawn_blocking(move || {
+        let tiles: Vec<&OsmBuildings> = parts.iter().collect();
+        rebuild(&tiles, &c)
     })
-    .await?;
-    let rebuilt = rebuilt?;
-    let mut held = held;
+    .await??;
 
     // Every data tile an old or a new outline overlaps, of the imported extent.
     let mut targets: BTreeSet<TileCoord> = BTreeSet::new();
@@ -151,24 +158,14 @@ pub async fn apply_change(
     for (_, ts) in &new_tiles {
         targets.extend(ts.iter().copied());
     }
-    for t in &targets {
-        if !held.contains_key(t)
-            && let Some(body) = w.get_body(t).await?
-        {
-            held.insert(*t, unpack(&body)?);
-        }
-    }
-    report.outside_extent = new_tiles
-        .iter()
-        .filter(|(_, ts)| !ts.iter().any(|t| held.contains_key(t)))
-        .count();
     let replaced = rebuilt.replaced();
-    let mut written: Vec<(TileCoord, Vec<u8>)> = Vec::new();
-    let mut index: Vec<(TileCoord, OsmBuildings)> = Vec::new();
+    let mut imported: BTreeSet<TileCoord> = BTreeSet::new();
     for t in &targets {
-        let Some(tile) = held.get_mut(t) else {
+        let Some(body) = w.get_body(t).await? else {
             continue;
         };
+        imported.insert(*t);
+        let mut tile = unpack(&body)?;
         let add: Vec<&BuildingRecord> = new_tiles
             .iter()
             .filter(|(_, ts)| ts.contains(t))
@@ -184,29 +181,27 @@ pub async fn apply_change(
             })
             .copied()
             .collect();
-        update_tile(tile, &rebuilt, &replaced, &add, &skipped_here);
-        written.push((*t, pack(tile)));
-        index.push((
-            *t,
-            OsmBuildings {
-                buildings: add.into_iter().cloned().collect(),
-                member_ways: rebuilt.now.member_ways.clone(),
-                ..OsmBuildings::default()
-            },
-        ));
+        update_tile(&mut tile, &rebuilt, &replaced, &add, &skipped_here);
+        w.put_many(&[(*t, pack(&tile))]).await?;
+        report.data_tiles_written += 1;
+        let added = OsmBuildings {
+            buildings: add.into_iter().cloned().collect(),
+            member_ways: rebuilt.now.member_ways.clone(),
+            ..OsmBuildings::default()
+        };
+        w.index_elements(t, elements_of(&added)).await?;
     }
-    report.data_tiles_written = written.len();
+    report.outside_extent = new_tiles
+        .iter()
+        .filter(|(_, ts)| !ts.iter().any(|t| imported.contains(t)))
+        .count();
     report.buildings_changed = replaced.len();
-    w.put_many(&written).await?;
-    for (t, added) in &index {
-        w.index_elements(t, elements_of(added)).await?;
-    }
     // The stale areas: each changed building's old and new outline, grown by the margin.
     let mut areas: Vec<GeoBbox> = rebuilt.old_bounds.iter().filter_map(grown).collect();
     areas.extend(
         new_tiles
             .iter()
-            .filter(|(_, ts)| ts.iter().any(|t| held.contains_key(t)))
+            .filter(|(_, ts)| ts.iter().any(|t| imported.contains(t)))
             .filter_map(|(r, _)| grown(&citymesh_core::building::cluster::record_bounds(r))),
     );
     w.note_changed_areas(&areas).await?;
