@@ -287,6 +287,17 @@ async fn each_kind_of_edit_shows_and_drops_exactly_the_tiles_over_it() {
             })
             .collect::<String>()
     };
+    let modify_way = |r: &BuildingRecord, tags: &std::collections::BTreeMap<String, String>| {
+        let nd: String = closed_refs(r)
+            .iter()
+            .map(|n| format!("<nd ref=\"{n}\"/>"))
+            .collect();
+        let (OsmId::Way(id) | OsmId::Relation(id)) = r.id;
+        format!(
+            "<modify><way id=\"{id}\" version=\"9\">{nd}{}</way></modify>",
+            tag_xml(tags)
+        )
+    };
     let id_of = |r: &BuildingRecord| match r.id {
         OsmId::Way(n) | OsmId::Relation(n) => n,
     };
@@ -313,29 +324,13 @@ async fn each_kind_of_edit_shows_and_drops_exactly_the_tiles_over_it() {
         ),
         (
             "raise a height",
-            format!(
-                "<modify><way id=\"{}\" version=\"9\">{}{}</way></modify>",
-                id_of(raise),
-                closed_refs(raise)
-                    .iter()
-                    .map(|n| format!("<nd ref=\"{n}\"/>"))
-                    .collect::<String>(),
-                tag_xml(&raise_tags)
-            ),
+            modify_way(raise, &raise_tags),
             raise.id,
             record_bounds(raise),
         ),
         (
             "change a roof shape",
-            format!(
-                "<modify><way id=\"{}\" version=\"9\">{}{}</way></modify>",
-                id_of(roof),
-                closed_refs(roof)
-                    .iter()
-                    .map(|n| format!("<nd ref=\"{n}\"/>"))
-                    .collect::<String>(),
-                tag_xml(&roof_tags)
-            ),
+            modify_way(roof, &roof_tags),
             roof.id,
             record_bounds(roof),
         ),
