@@ -87,8 +87,8 @@ fn a_height_edit_touches_that_building_alone() {
 fn unknown_nodes_and_ways_are_refused_by_id() {
     let tile = stored("karlsruhe-kirchfeld.osm.pbf");
     let c = change(
-        "<create><way id=\"1\"><nd ref=\"900_000_000_001\"/><nd ref=\"900_000_000_002\"/>\
-         <nd ref=\"900_000_000_001\"/><tag k=\"building\" v=\"yes\"/></way></create>",
+        "<create><way id=\"1\"><nd ref=\"900000000001\"/><nd ref=\"900000000002\"/>\
+         <nd ref=\"900000000001\"/><tag k=\"building\" v=\"yes\"/></way></create>",
     );
     let e = rebuild(&[&tile], &c).unwrap_err();
     assert_eq!(
