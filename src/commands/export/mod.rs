@@ -26,6 +26,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use plan::{Scope, Unit};
 use sha2::Digest as _;
 use std::collections::HashMap;
+use std::io::Write as _;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 use target::ExportTarget;
@@ -377,7 +378,11 @@ impl Exporter<'_> {
         let percent = done * 100 / total;
         if self.last_percent.fetch_max(percent, Ordering::Relaxed) < percent {
             let rate = self.bar.per_sec();
-            println!("{done}/{total} files ({percent} %, {rate:.1} files/s)");
+            // A reader gone (a closed pipe) stops the lines, not the export.
+            let _ = writeln!(
+                std::io::stdout().lock(),
+                "{done}/{total} files ({percent} %, {rate:.1} files/s)"
+            );
         }
     }
 }
