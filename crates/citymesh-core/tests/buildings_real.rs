@@ -396,3 +396,79 @@ fn every_real_outline_has_a_straight_skeleton() {
         );
     }
 }
+
+/// The area each record's outline leaves (m², in the scene's frame), worked out here from the
+/// records with boolean operations: its outer rings united, less its inner rings and the parts
+/// standing in it.
+fn outline_areas(b: &OsmBuildings, frame: &LocalFrame) -> BTreeMap<String, f64> {
+    use citymesh_core::building::cluster::part_of;
+    use geo::{Area, BooleanOps, Coord, LineString, MultiPolygon, Polygon};
+    let poly = |r: &citymesh_core::osm::Ring| {
+        let ring: Vec<Coord<f64>> = r
+            .nodes
+            .iter()
+            .map(|n| {
+                let p = frame.to_local(n.lon, n.lat, 0.0);
+                Coord { x: p[0], y: p[1] }
+            })
+            .collect();
+        Polygon::new(LineString::new(ring), vec![])
+    };
+    let united = |rings: &[citymesh_core::osm::Ring]| {
+        rings.iter().fold(MultiPolygon::new(vec![]), |acc, r| {
+            acc.union(&MultiPolygon::new(vec![poly(r)]))
+        })
+    };
+    b.buildings
+        .iter()
+        .map(|r| {
+            let mut area = united(&r.outers).difference(&united(&r.inners));
+            if !r.is_part {
+                for part in b.buildings.iter().filter(|p| p.is_part && part_of(p, r)) {
+                    area = area.difference(&united(&part.outers).difference(&united(&part.inners)));
+                }
+            }
+            (r.id.to_string(), area.unsigned_area())
+        })
+        .collect()
+}
+
+/// Every building's drawn floor covers the area its outline leaves, to 0.5 m², unless the scene
+/// reports it (area lost, a repair, or skipped).
+#[rstest]
+#[case::kirchfeld("karlsruhe-kirchfeld.osm.pbf")]
+#[case::kit_nord("karlsruhe-kit-nord.osm.pbf")]
+#[case::tram("tram-junction.osm.pbf")]
+#[case::nuremberg("nuremberg-laufamholz.osm")]
+#[case::san_francisco("san-francisco.overpass.json.gz")]
+fn no_floor_differs_from_its_outline_unreported(#[case] file: &str) {
+    let (b, scene) = whole_scene(file);
+    let s = &scene.buildings;
+    let mut drawn: BTreeMap<String, f64> = BTreeMap::new();
+    let m = &scene.mesh;
+    for (t, tri) in m.triangles.iter().enumerate() {
+        if m.styles[t].material != citymesh_core::mesh::Material::Floor {
+            continue;
+        }
+        let [a, b, c] = m.corners(*tri);
+        let area = ((b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])).abs() / 2.0;
+        *drawn
+            .entry(s.features[m.styles[t].feature as usize].id.to_string())
+            .or_default() += area;
+    }
+    let reported: std::collections::BTreeSet<&str> = s
+        .area_lost_ids
+        .iter()
+        .map(|(id, _)| id.as_str())
+        .chain(s.repaired_ids.iter().map(|(id, _)| id.as_str()))
+        .chain(s.skipped_ids.iter().map(|(id, _)| id.as_str()))
+        .collect();
+    let mut unreported = Vec::new();
+    for (id, want) in outline_areas(&b, &scene.frame) {
+        let got = drawn.get(&id).copied().unwrap_or(0.0);
+        if (got - want).abs() > 0.5 && !reported.contains(id.as_str()) {
+            unreported.push((id, want, got));
+        }
+    }
+    assert_eq!(unreported, vec![], "{file}: (id, outline area, drawn)");
+}

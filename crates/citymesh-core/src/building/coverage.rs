@@ -1,25 +1,22 @@
-//! Nothing dropped unreported: after a group is meshed, each building's drawn floor must cover
-//! the pieces of outline it was given (its outline, less its parts and what the scene border
-//! cuts off). A floor that covers less means part of the building (floor, walls and roof over it)
-//! went missing in the meshing; the loss is reported with the building's id.
+//! Nothing lost or added unreported: after a group is meshed, each building's drawn floor must
+//! cover the area its outline leaves (the outline less its courtyards and parts, as the boolean
+//! cut answers it, less what the scene border cuts off). A floor that covers less means part of
+//! the building (floor, walls and roof over it) went missing; one that covers more means a
+//! courtyard or part was drawn over. Either is reported with the building's id.
 
-use super::group::Volume;
 use crate::mesh::{Material, Mesh};
 use std::collections::BTreeMap;
 use std::ops::Range;
 
-/// For each building (feature row) of `volumes`, the area of its pieces not covered by its floor
-/// triangles among `triangles` of `mesh`, m², where that exceeds `tolerance`.
+/// For each building (feature row) of `wanted`, its wanted floor area less the area of its floor
+/// triangles among `triangles` of `mesh`, m², where that differs from 0 by over `tolerance`:
+/// positive when area was lost, negative when more was drawn.
 pub fn uncovered_area(
-    volumes: &[Volume],
+    wanted: &BTreeMap<u32, f64>,
     mesh: &Mesh,
     triangles: Range<usize>,
     tolerance: f64,
 ) -> Vec<(u32, f64)> {
-    let mut wanted: BTreeMap<u32, f64> = BTreeMap::new();
-    for v in volumes {
-        *wanted.entry(v.feature).or_default() += v.footprint.area();
-    }
     let mut drawn: BTreeMap<u32, f64> = BTreeMap::new();
     for t in triangles {
         let (Some(&tri), Some(style)) = (mesh.triangles.get(t), mesh.styles.get(t)) else {
@@ -33,10 +30,10 @@ pub fn uncovered_area(
         *drawn.entry(style.feature).or_default() += area;
     }
     wanted
-        .into_iter()
-        .filter_map(|(feature, want)| {
+        .iter()
+        .filter_map(|(&feature, want)| {
             let lost = want - drawn.get(&feature).copied().unwrap_or(0.0);
-            (lost > tolerance).then_some((feature, lost))
+            (lost.abs() > tolerance).then_some((feature, lost))
         })
         .collect()
 }
@@ -46,7 +43,7 @@ mod tests {
     use super::*;
     use crate::building::axes::RoofAxes;
     use crate::building::footprint::{Footprint, FootprintRing};
-    use crate::building::group::mesh_group;
+    use crate::building::group::{Volume, mesh_group};
     use crate::building::roof::RoofShape;
     use crate::building::roof_surface::RoofSurface;
     use crate::building::tags::Orientation;
@@ -93,7 +90,13 @@ mod tests {
         let mut mesh = Mesh::default();
         mesh_group(&volumes, &[roof(&house), roof(&shed)], &mut mesh);
         let all = 0..mesh.triangles.len();
-        assert_eq!(uncovered_area(&volumes, &mesh, all.clone(), 1.0), vec![]);
+        let mut wanted = BTreeMap::from([(0, 60.0), (1, 12.0)]);
+        assert_eq!(uncovered_area(&wanted, &mesh, all.clone(), 1.0), vec![]);
+        // A shed that should have been 4 m x 2 m was drawn 4 m² too big.
+        wanted.insert(1, 8.0);
+        assert_eq!(uncovered_area(&wanted, &mesh, all.clone(), 1.0).len(), 1);
+        assert!((uncovered_area(&wanted, &mesh, all.clone(), 1.0)[0].1 + 4.0).abs() < 1e-9);
+        wanted.insert(1, 12.0);
 
         // Drop one floor triangle of the house: half its floor (30 m²) or less goes missing.
         let floor = (0..mesh.triangles.len())
@@ -102,7 +105,7 @@ mod tests {
         let [a, b, c] = mesh.corners(mesh.triangles[floor]);
         let gone = ((b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])).abs() / 2.0;
         mesh.styles[floor].material = Material::Wall;
-        let lost = uncovered_area(&volumes, &mesh, all.clone(), 1.0);
+        let lost = uncovered_area(&wanted, &mesh, all.clone(), 1.0);
         assert_eq!(lost.len(), 1);
         assert_eq!(lost[0].0, 0);
         assert!(
@@ -110,6 +113,6 @@ mod tests {
             "{lost:?}, {gone}"
         );
         // Under the tolerance it is not reported.
-        assert_eq!(uncovered_area(&volumes, &mesh, all, gone + 0.1), vec![]);
+        assert_eq!(uncovered_area(&wanted, &mesh, all, gone + 0.1), vec![]);
     }
 }

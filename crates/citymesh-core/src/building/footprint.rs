@@ -192,10 +192,18 @@ impl FootprintRing {
 impl Footprint {
     /// Cleans and checks the rings. Courtyards that fall outside the outer ring, cross it or
     /// another courtyard are dropped (the building keeps its outline).
-    pub fn new(
+    pub fn new(outer: FootprintRing, holes: Vec<FootprintRing>) -> Result<Self, FootprintError> {
+        Self::with_courtyards_apart(outer, holes).map(|(f, _)| f)
+    }
+
+    /// [`Footprint::new`], answering too the courtyards it could not keep as holes though they
+    /// are rings (cleaned, counter-clockwise): those touching or crossing the outer ring or a
+    /// courtyard kept, or not inside. They are cut out of the footprint by a boolean difference
+    /// (`pieces::cut_out`), which unites courtyards that share an edge.
+    pub fn with_courtyards_apart(
         mut outer: FootprintRing,
         holes: Vec<FootprintRing>,
-    ) -> Result<Self, FootprintError> {
+    ) -> Result<(Self, Vec<FootprintRing>), FootprintError> {
         if outer
             .points
             .iter()
@@ -230,6 +238,7 @@ impl Footprint {
             return Err(FootprintError::SelfIntersecting);
         }
         let mut kept: Vec<FootprintRing> = Vec::new();
+        let mut apart: Vec<FootprintRing> = Vec::new();
         for mut hole in holes {
             hole.clean();
             if hole.len() < 3 || hole.signed_area().abs() < MIN_AREA || hole.self_intersects() {
@@ -245,9 +254,12 @@ impl Footprint {
             let crosses = |other: &FootprintRing| rings_touch(&hole, other);
             if inside && !crosses(&outer) && !kept.iter().any(crosses) {
                 kept.push(hole);
+            } else {
+                hole.reverse();
+                apart.push(hole);
             }
         }
-        Ok(Self { outer, holes: kept })
+        Ok((Self { outer, holes: kept }, apart))
     }
 
     /// All rings: the outer first, then the courtyards.

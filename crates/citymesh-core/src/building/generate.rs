@@ -11,6 +11,7 @@ use super::footprint::{Footprint, FootprintError, FootprintRing, NodeKey};
 use super::group::{Volume, mesh_group};
 use super::height_base::HeightBase;
 use super::params::BuildingParams;
+use super::pieces::{Pieces, cut_out, truncate};
 use super::roof::RoofShape;
 use super::roof_method::RoofMethod;
 use super::roof_surface::RoofSurface;
@@ -21,8 +22,7 @@ use crate::geo::{GeoBbox, LocalFrame};
 use crate::mesh::{Mesh, check_closed};
 use crate::osm::{BuildingRecord, OsmId, Ring};
 use crate::terrain::ElevationModel;
-use geo::{BooleanOps, Coord, LineString, MultiPolygon, Polygon};
-use std::borrow::Cow;
+use std::collections::BTreeMap;
 
 /// What every building of a scene is generated against.
 pub struct BuildingContext<'a> {
@@ -38,14 +38,14 @@ pub struct BuildingContext<'a> {
     pub tags: super::TagProperties,
 }
 
-/// Pieces of outline left over by parts smaller than this (m²) are slivers, not rooms.
-const MIN_PIECE_AREA: f64 = 1.0;
-
 /// One record turned into footprints (one per outer ring) and parameters.
 struct Prepared<'r> {
     record: &'r BuildingRecord,
     /// Each outer ring with its courtyards, in metres.
     footprints: Vec<Footprint>,
+    /// For each footprint, the courtyards it could not keep as holes (they touch its outline
+    /// or another courtyard): they are cut out of it.
+    apart: Vec<Vec<FootprintRing>>,
     tags: BuildingTags,
 }
 
@@ -96,14 +96,22 @@ pub fn generate_cluster_until(
     // The record each roof belongs to.
     let mut roof_ids: Vec<OsmId> = Vec::new();
     let mut volumes: Vec<Volume> = Vec::new();
+    // The floor area each building's pieces leave, by feature.
+    let mut wanted: BTreeMap<u32, f64> = BTreeMap::new();
     for (i, p) in prepared.iter().enumerate() {
         if stop() {
             return;
         }
-        let parts: Vec<&Prepared> = (0..prepared.len())
-            .filter(|&j| outline_of[j] == Some(i))
-            .map(|j| &prepared[j])
-            .collect();
+        // Every part standing in this outline is cut out of it, also one that stands on the
+        // ground of another outline overlapping this one.
+        let parts: Vec<&Prepared> = if p.record.is_part {
+            Vec::new()
+        } else {
+            prepared
+                .iter()
+                .filter(|q| q.record.is_part && part_of(q.record, p.record))
+                .collect()
+        };
         // Parts stand on the ground of their outline, so they line up.
         let ground_ring = match outline_of[i] {
             Some(o) => &prepared[o].record.outers,
@@ -135,31 +143,44 @@ pub fn generate_cluster_until(
             let top = ctx.heights.top(elev_min, elev_max, params.height);
             let surface = surface.with_heights(top, params.roof_height);
 
-            // Outline minus its parts, then truncated at the scene border.
-            let mut pieces = vec![Cow::Borrowed(footprint)];
-            if !parts.is_empty() {
+            // Outline minus its parts and the courtyards set apart, then truncated at the scene
+            // border.
+            let apart = &p.apart[k];
+            let mut pieces = Pieces::whole(footprint);
+            if !parts.is_empty() || !apart.is_empty() {
                 let cut: Vec<&Footprint> = parts.iter().flat_map(|q| &q.footprints).collect();
-                pieces = subtract(footprint, &cut)
-                    .into_iter()
-                    .map(Cow::Owned)
-                    .collect();
-                if pieces.is_empty() {
+                pieces = cut_out(footprint, &cut, apart);
+                if pieces.footprints.is_empty() && !parts.is_empty() {
                     stats.outlines_covered_by_parts += 1;
+                }
+                if !apart.is_empty() {
+                    stats
+                        .repaired_ids
+                        .push((p.record.id.to_string(), "courtyard_touches_a_ring"));
                 }
             }
             if let Some(clip) = ctx.clip {
-                pieces = pieces
-                    .iter()
-                    .flat_map(|f| truncate(f, &clip, ctx.frame))
-                    .map(Cow::Owned)
-                    .collect();
+                let lo = ctx.frame.to_local(clip.min_lon(), clip.min_lat(), 0.0);
+                let hi = ctx.frame.to_local(clip.max_lon(), clip.max_lat(), 0.0);
+                let mut clipped = Pieces::default();
+                for f in pieces.footprints {
+                    clipped.extend(truncate(f, [lo[0], lo[1]], [hi[0], hi[1]]));
+                }
+                clipped.split |= pieces.split;
+                pieces = clipped;
             }
-            if pieces.is_empty() {
+            if pieces.split {
+                stats
+                    .repaired_ids
+                    .push((p.record.id.to_string(), "split_where_rings_touch"));
+            }
+            *wanted.entry(feature).or_default() += pieces.area;
+            if pieces.footprints.is_empty() {
                 continue;
             }
             roofs.push(surface);
             roof_ids.push(p.record.id);
-            for piece in pieces {
+            for piece in pieces.footprints {
                 volumes.push(Volume {
                     footprint: piece,
                     roof: roofs.len() - 1,
@@ -230,7 +251,7 @@ pub fn generate_cluster_until(
     stats.dropped_constraints += report.dropped_constraints;
     // Nothing dropped unreported: every building's floor covers its pieces.
     for (feature, lost) in uncovered_area(
-        &volumes,
+        &wanted,
         mesh,
         triangles..mesh.triangles.len(),
         MAX_AREA_LOSS_M2,
@@ -346,6 +367,7 @@ fn prepare<'r>(
 ) -> Result<Prepared<'r>, FootprintError> {
     let inners: Vec<FootprintRing> = record.inners.iter().map(|r| project(r, frame)).collect();
     let mut footprints = Vec::with_capacity(record.outers.len());
+    let mut apart = Vec::with_capacity(record.outers.len());
     let mut last_error = FootprintError::TooFewPoints;
     for outer in &record.outers {
         let outer = project(outer, frame);
@@ -359,8 +381,11 @@ fn prepare<'r>(
             })
             .cloned()
             .collect();
-        match Footprint::new(outer, holes) {
-            Ok(f) => footprints.push(f),
+        match Footprint::with_courtyards_apart(outer, holes) {
+            Ok((f, a)) => {
+                footprints.push(f);
+                apart.push(a);
+            }
             Err(e) => last_error = e,
         }
     }
@@ -371,93 +396,6 @@ fn prepare<'r>(
         record,
         tags: BuildingTags::read(&record.tags),
         footprints,
+        apart,
     })
-}
-
-fn to_polygon(f: &Footprint) -> Polygon<f64> {
-    let ring = |r: &FootprintRing| {
-        LineString::new(
-            r.points
-                .iter()
-                .map(|p| Coord { x: p[0], y: p[1] })
-                .collect(),
-        )
-    };
-    Polygon::new(ring(&f.outer), f.holes.iter().map(ring).collect())
-}
-
-/// Boolean results in footprints again, each point snapped back to the input point it came from
-/// (so it keeps its node key and exact coordinates); new points get coordinate keys.
-fn from_multipolygon(mp: MultiPolygon<f64>, sources: &[&Footprint]) -> Vec<Footprint> {
-    let originals: Vec<([f64; 2], NodeKey)> = sources
-        .iter()
-        .flat_map(|f| f.rings())
-        .flat_map(|r| r.points.iter().copied().zip(r.keys.iter().copied()))
-        .collect();
-    let snap = |c: &Coord<f64>| -> ([f64; 2], NodeKey) {
-        let p = [c.x, c.y];
-        originals
-            .iter()
-            .find(|(q, _)| (q[0] - p[0]).abs() < 1e-5 && (q[1] - p[1]).abs() < 1e-5)
-            .copied()
-            .unwrap_or((p, NodeKey::at(p)))
-    };
-    let ring = |ls: &LineString<f64>| {
-        let mut coords: Vec<&Coord<f64>> = ls.0.iter().collect();
-        if coords.len() > 1 && coords.first() == coords.last() {
-            coords.pop();
-        }
-        let (points, keys): (Vec<_>, Vec<_>) = coords.into_iter().map(snap).unzip();
-        FootprintRing::new(points, keys)
-    };
-    mp.0.iter()
-        .filter_map(|poly| {
-            let f = Footprint::new(
-                ring(poly.exterior()),
-                poly.interiors().iter().map(ring).collect(),
-            )
-            .ok()?;
-            (f.area() >= MIN_PIECE_AREA).then_some(f)
-        })
-        .collect()
-}
-
-/// The footprint minus the parts standing in it.
-fn subtract(footprint: &Footprint, parts: &[&Footprint]) -> Vec<Footprint> {
-    // One part at a time: parts may overlap (a tower standing on its podium), and overlapping
-    // members of one MultiPolygon would cancel out under the even-odd rule.
-    let mut rest = MultiPolygon::new(vec![to_polygon(footprint)]);
-    for part in parts {
-        if rest.0.is_empty() {
-            break;
-        }
-        rest = rest.difference(&to_polygon(part));
-    }
-    let mut sources = vec![footprint];
-    sources.extend_from_slice(parts);
-    from_multipolygon(rest, &sources)
-}
-
-/// The footprint cut to the scene box; whole when it lies inside.
-fn truncate(footprint: &Footprint, clip: &GeoBbox, frame: &LocalFrame) -> Vec<Footprint> {
-    let lo = frame.to_local(clip.min_lon(), clip.min_lat(), 0.0);
-    let hi = frame.to_local(clip.max_lon(), clip.max_lat(), 0.0);
-    let inside = footprint
-        .outer
-        .points
-        .iter()
-        .all(|p| p[0] >= lo[0] && p[0] <= hi[0] && p[1] >= lo[1] && p[1] <= hi[1]);
-    if inside {
-        return vec![footprint.clone()];
-    }
-    let outside = footprint.outer.points.iter().all(|p| p[0] < lo[0])
-        || footprint.outer.points.iter().all(|p| p[0] > hi[0])
-        || footprint.outer.points.iter().all(|p| p[1] < lo[1])
-        || footprint.outer.points.iter().all(|p| p[1] > hi[1]);
-    if outside {
-        return Vec::new();
-    }
-    let rect = geo::Rect::new(Coord { x: lo[0], y: lo[1] }, Coord { x: hi[0], y: hi[1] });
-    let cut = to_polygon(footprint).intersection(&rect.to_polygon());
-    from_multipolygon(cut, &[footprint])
 }

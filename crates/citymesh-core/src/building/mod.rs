@@ -23,6 +23,7 @@ pub mod height_base;
 pub mod in_box;
 mod length;
 pub mod params;
+pub mod pieces;
 pub mod roof;
 pub mod roof_method;
 pub mod roof_surface;

@@ -45,9 +45,9 @@ pub struct BuildingStats {
     /// The records whose `roof:shape` names no shape citymesh draws, with that value (drawn
     /// flat).
     pub unsupported_shape_ids: Vec<(String, String)>,
-    /// Generated records whose drawn floor covers less of their outline (after parts and the
-    /// scene border are cut out) than it should, by more than [`MAX_AREA_LOSS_M2`], with the
-    /// square metres lost.
+    /// Generated records whose drawn floor area differs from the area their outline leaves (less
+    /// its courtyards, its parts and what the scene border cuts off) by more than
+    /// [`MAX_AREA_LOSS_M2`], with the square metres lost (negative: drawn over).
     pub area_lost_ids: Vec<(String, f64)>,
     /// The generated records as clients see them, in generation order (a triangle's feature id
     /// is its index here).
@@ -55,9 +55,8 @@ pub struct BuildingStats {
     pub features: Vec<BuildingFeature>,
 }
 
-/// A drawn floor may miss this much of its outline (m²) before the loss is reported: slivers
-/// below it are dropped on purpose.
-pub const MAX_AREA_LOSS_M2: f64 = 1.0;
+/// A drawn floor may differ this much from its outline (m²) before it is reported.
+pub const MAX_AREA_LOSS_M2: f64 = 0.5;
 
 impl BuildingStats {
     /// Notes what reading the data found about the records a scene used (`used`): those that

@@ -189,10 +189,59 @@ fn collect(
             }
         }
     }
+    split_across_slivers(&points, &mut triangles);
     PlanarMesh {
         points,
         triangles,
         dropped_constraints: dropped,
+    }
+}
+
+/// A triangle this thin (m, its height over its longest edge) has no area.
+const SLIVER_HEIGHT: f64 = 1e-6;
+
+/// Removes slivers: three interior points that are collinear up to rounding (where straight
+/// skeleton nodes fall on another face's edge, as at a small bay) can give a triangle of no area
+/// whose long edge is shared with a real triangle. The sliver goes, and the real triangle is
+/// split at the sliver's middle point, so every edge still has its partner.
+fn split_across_slivers(points: &[[f64; 2]], triangles: &mut [[u32; 3]]) {
+    let p = |i: u32| points[i as usize];
+    // For a sliver: its long edge (a, b) in its own direction, and the point m between them.
+    let sliver = |t: &[u32; 3]| -> Option<(u32, u32, u32)> {
+        (0..3).find_map(|k| {
+            let (a, b, m) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+            let (pa, pb, pm) = (p(a), p(b), p(m));
+            let ab = [pb[0] - pa[0], pb[1] - pa[1]];
+            let len2 = ab[0] * ab[0] + ab[1] * ab[1];
+            if len2 == 0.0 {
+                return None;
+            }
+            let t = ((pm[0] - pa[0]) * ab[0] + (pm[1] - pa[1]) * ab[1]) / len2;
+            let height = orient(pa, pb, pm).abs() / len2.sqrt();
+            (t > 0.0 && t < 1.0 && height < SLIVER_HEIGHT).then_some((a, b, m))
+        })
+    };
+    // Each split removes a sliver, so this ends.
+    for _ in 0..triangles.len() {
+        let Some((i, (a, b, m))) = triangles
+            .iter()
+            .enumerate()
+            .find_map(|(i, t)| sliver(t).map(|s| (i, s)))
+        else {
+            return;
+        };
+        // The triangle on the other side runs the edge from b to a.
+        let other = triangles
+            .iter()
+            .position(|t| (0..3).any(|k| t[k] == b && t[(k + 1) % 3] == a));
+        let Some(j) = other else {
+            return;
+        };
+        let t = triangles[j];
+        let k = (0..3).find(|&k| t[k] == b).unwrap_or(0);
+        let c = t[(k + 2) % 3];
+        triangles[j] = [b, m, c];
+        triangles[i] = [m, a, c];
     }
 }
 

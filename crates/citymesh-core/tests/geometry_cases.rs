@@ -1,0 +1,312 @@
+//! Outlines real data draws that are easy to get wrong, each built from OSM-like records in a
+//! local frame: courtyards that share an edge, a part touching its outline at one node, a small
+//! bay. Each asserts the exact floor area drawn (the outline less its courtyards and parts, to
+//! 0.01 m²), the repair reported by id, and a closed group whose every edge has two triangles.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
+
+use citymesh_core::geo::{GeoBbox, LocalFrame};
+use citymesh_core::mesh::{Material, check_closed};
+use citymesh_core::osm::{BuildingRecord, OsmId, Ring, RingNode};
+use citymesh_core::scene::{Border, Scene};
+use citymesh_core::terrain::ElevationModel;
+use std::collections::BTreeMap;
+
+const BBOX: [f64; 4] = [8.399, 48.999, 8.401, 49.001];
+
+fn frame() -> LocalFrame {
+    let bbox = GeoBbox::new(BBOX[0], BBOX[1], BBOX[2], BBOX[3]).unwrap();
+    let (lon, lat) = bbox.center();
+    LocalFrame::new(lon, lat, 0.0)
+}
+
+/// A ring of OSM nodes `(id, x, y)` (local metres), open.
+fn ring(nodes: &[(i64, f64, f64)]) -> Ring {
+    let frame = frame();
+    Ring {
+        nodes: nodes
+            .iter()
+            .map(|&(id, x, y)| {
+                let (lon, lat, _) = frame.to_geographic([x, y, 0.0]);
+                RingNode {
+                    id: Some(id),
+                    lon,
+                    lat,
+                }
+            })
+            .collect(),
+    }
+}
+
+fn record(
+    id: OsmId,
+    is_part: bool,
+    outer: Ring,
+    inners: Vec<Ring>,
+    tags: &[(&str, &str)],
+) -> BuildingRecord {
+    BuildingRecord {
+        id,
+        is_part,
+        outers: vec![outer],
+        inners,
+        tags: tags
+            .iter()
+            .map(|(k, v)| ((*k).to_owned(), (*v).to_owned()))
+            .collect(),
+    }
+}
+
+/// One cluster's scene on flat ground.
+fn scene(records: &[&BuildingRecord]) -> Scene {
+    let bbox = GeoBbox::new(BBOX[0], BBOX[1], BBOX[2], BBOX[3]).unwrap();
+    let scene = Scene::new(
+        &ElevationModel::default(),
+        &bbox,
+        &[records.to_vec()],
+        Border::Whole,
+    );
+    assert_eq!(scene.frame, frame());
+    scene
+}
+
+/// Floor area drawn per building id.
+fn floors(scene: &Scene) -> BTreeMap<String, f64> {
+    let mut out = BTreeMap::new();
+    let m = &scene.mesh;
+    for (t, tri) in m.triangles.iter().enumerate() {
+        if m.styles[t].material != Material::Floor {
+            continue;
+        }
+        let [a, b, c] = m.corners(*tri);
+        let area = ((b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])).abs() / 2.0;
+        let id = scene.buildings.features[m.styles[t].feature as usize]
+            .id
+            .to_string();
+        *out.entry(id).or_default() += area;
+    }
+    out
+}
+
+/// The group is closed, outward, and every edge is shared by exactly two triangles.
+fn assert_strict_solid(scene: &Scene, what: &str) {
+    for range in &scene.cluster_triangles {
+        let r = check_closed(&scene.mesh, range.clone());
+        assert!(
+            r.triangles > 0
+                && r.open_edges == 0
+                && r.non_manifold_edges == 0
+                && r.degenerate == 0
+                && r.volume > 0.0,
+            "{what}: {r:?}"
+        );
+    }
+}
+
+fn repairs(scene: &Scene) -> Vec<(String, &'static str)> {
+    scene.buildings.repaired_ids.clone()
+}
+
+fn close(a: f64, b: f64) -> bool {
+    (a - b).abs() <= 0.01
+}
+
+#[test]
+fn two_courtyards_sharing_an_edge_are_both_left_open() {
+    // A 100 m x 60 m block with two 20 m x 10 m courtyards side by side: they share the edge
+    // from node 12 to node 13.
+    let outer = ring(&[
+        (1, 0.0, 0.0),
+        (2, 100.0, 0.0),
+        (3, 100.0, 60.0),
+        (4, 0.0, 60.0),
+    ]);
+    let a = ring(&[
+        (10, 10.0, 20.0),
+        (11, 10.0, 30.0),
+        (13, 30.0, 30.0),
+        (12, 30.0, 20.0),
+    ]);
+    let b = ring(&[
+        (12, 30.0, 20.0),
+        (13, 30.0, 30.0),
+        (15, 50.0, 30.0),
+        (14, 50.0, 20.0),
+    ]);
+    let block = record(
+        OsmId::Relation(1),
+        false,
+        outer,
+        vec![a, b],
+        &[("building", "apartments"), ("height", "12")],
+    );
+    let s = scene(&[&block]);
+    let drawn = floors(&s)["relation/1"];
+    assert!(close(drawn, 6000.0 - 400.0), "{drawn}");
+    assert_eq!(
+        repairs(&s),
+        vec![("relation/1".to_owned(), "courtyard_touches_a_ring")]
+    );
+    assert_eq!(s.buildings.area_lost_ids, vec![]);
+    assert_strict_solid(&s, "");
+}
+
+#[test]
+fn a_courtyard_touching_the_outline_at_a_node_is_left_open() {
+    // A 40 m x 20 m block whose 8 m x 8 m diamond courtyard touches the outline at node 2.
+    let outer = ring(&[
+        (1, 0.0, 0.0),
+        (2, 20.0, 0.0),
+        (3, 40.0, 0.0),
+        (4, 40.0, 20.0),
+        (5, 0.0, 20.0),
+    ]);
+    let yard = ring(&[
+        (2, 20.0, 0.0),
+        (6, 24.0, 4.0),
+        (7, 20.0, 8.0),
+        (8, 16.0, 4.0),
+    ]);
+    let block = record(
+        OsmId::Relation(2),
+        false,
+        outer,
+        vec![yard],
+        &[("building", "yes"), ("height", "9")],
+    );
+    let s = scene(&[&block]);
+    let drawn = floors(&s)["relation/2"];
+    assert!(close(drawn, 800.0 - 32.0), "{drawn}");
+    let r = repairs(&s);
+    assert!(
+        r.contains(&("relation/2".to_owned(), "courtyard_touches_a_ring")),
+        "{r:?}"
+    );
+    assert!(
+        r.contains(&("relation/2".to_owned(), "split_where_rings_touch")),
+        "{r:?}"
+    );
+    assert_eq!(s.buildings.area_lost_ids, vec![]);
+    let c = check_closed(&s.mesh, s.cluster_triangles[0].clone());
+    assert!(
+        c.open_edges == 0 && c.degenerate == 0 && c.volume > 0.0,
+        "{c:?}"
+    );
+}
+
+#[test]
+fn a_part_touching_its_outline_at_one_node_is_cut_out_of_it() {
+    // A 20 m x 10 m, 3 m outline; inside it a 6 m part, a diamond of 32 m² whose lowest node
+    // (node 2) is a node of the outline's south wall.
+    let outline = record(
+        OsmId::Way(1),
+        false,
+        ring(&[
+            (1, 0.0, 0.0),
+            (2, 10.0, 0.0),
+            (3, 20.0, 0.0),
+            (4, 20.0, 10.0),
+            (5, 0.0, 10.0),
+        ]),
+        vec![],
+        &[("building", "yes"), ("height", "3")],
+    );
+    let part = record(
+        OsmId::Way(2),
+        true,
+        ring(&[
+            (2, 10.0, 0.0),
+            (6, 14.0, 4.0),
+            (7, 10.0, 8.0),
+            (8, 6.0, 4.0),
+        ]),
+        vec![],
+        &[("building:part", "yes"), ("height", "6")],
+    );
+    let s = scene(&[&outline, &part]);
+    let f = floors(&s);
+    assert!(close(f["way/1"], 200.0 - 32.0), "{f:?}");
+    assert!(close(f["way/2"], 32.0), "{f:?}");
+    assert_eq!(
+        repairs(&s),
+        vec![("way/1".to_owned(), "split_where_rings_touch")]
+    );
+    assert_eq!(s.buildings.area_lost_ids, vec![]);
+    let c = check_closed(&s.mesh, s.cluster_triangles[0].clone());
+    assert!(
+        c.open_edges == 0 && c.degenerate == 0 && c.volume > 0.0,
+        "{c:?}"
+    );
+}
+
+#[test]
+fn a_part_sharing_an_edge_with_its_outline_is_cut_out_of_it() {
+    let outline = record(
+        OsmId::Way(1),
+        false,
+        ring(&[
+            (1, 0.0, 0.0),
+            (2, 6.0, 0.0),
+            (3, 20.0, 0.0),
+            (4, 20.0, 10.0),
+            (5, 0.0, 10.0),
+            (6, 0.0, 4.0),
+        ]),
+        vec![],
+        &[("building", "yes"), ("height", "3")],
+    );
+    let part = record(
+        OsmId::Way(2),
+        true,
+        ring(&[(1, 0.0, 0.0), (2, 6.0, 0.0), (7, 6.0, 4.0), (6, 0.0, 4.0)]),
+        vec![],
+        &[("building:part", "yes"), ("height", "6")],
+    );
+    let s = scene(&[&outline, &part]);
+    let f = floors(&s);
+    assert!(close(f["way/1"], 200.0 - 24.0), "{f:?}");
+    assert!(close(f["way/2"], 24.0), "{f:?}");
+    assert_eq!(repairs(&s), vec![]);
+    assert_eq!(s.buildings.area_lost_ids, vec![]);
+    assert_strict_solid(&s, "");
+}
+
+#[test]
+fn a_small_bay_is_drawn_with_every_roof() {
+    // A 20 m x 25 m house with a 2.6 m x 2.5 m bay (6.5 m²) on its east wall, four nodes.
+    let nodes = [
+        (1, 0.0, 0.0),
+        (2, 20.0, 0.0),
+        (3, 20.0, 10.0),
+        (4, 22.6, 10.0),
+        (5, 22.6, 12.5),
+        (6, 20.0, 12.5),
+        (7, 20.0, 25.0),
+        (8, 0.0, 25.0),
+    ];
+    for shape in [
+        "flat",
+        "gabled",
+        "hipped",
+        "pyramidal",
+        "skillion",
+        "mansard",
+    ] {
+        let house = record(
+            OsmId::Way(3),
+            false,
+            ring(&nodes),
+            vec![],
+            &[
+                ("building", "house"),
+                ("height", "10"),
+                ("roof:shape", shape),
+                ("roof:height", "3"),
+            ],
+        );
+        let s = scene(&[&house]);
+        let drawn = floors(&s)["way/3"];
+        assert!(close(drawn, 506.5), "{shape}: {drawn}");
+        assert_eq!(s.buildings.area_lost_ids, vec![], "{shape}");
+        assert_strict_solid(&s, shape);
+    }
+}
