@@ -53,10 +53,13 @@ fn shape_tags(b: &OsmBuildings) -> BTreeMap<String, usize> {
 }
 
 /// Per file: records generated, of which parts; outlines left empty by their parts; roofs per
-/// shape. Nothing in these files is a data fault, so nothing is skipped.
+/// shape. Nothing in these files is a data fault, so nothing is skipped. In Kirchfeld,
+/// relation/1776559 is left empty by its parts and way/239732484, drawn over the rest of it (its
+/// 313.42 m² exactly): before outlines drawn over each other were cut, that office was drawn
+/// twice (3,019 generated and 7 covered).
 #[rstest]
-#[case::kirchfeld("karlsruhe-kirchfeld.osm.pbf", 3019, 31, 7, &[("flat", 2727), ("gabled", 271), ("gambrel", 1), ("hipped", 5), ("pyramidal", 3), ("quadruple_saltbox", 1), ("skillion", 11)])]
-#[case::kirchfeld_json("karlsruhe-kirchfeld.overpass.json", 3019, 31, 7, &[("flat", 2727), ("gabled", 271), ("gambrel", 1), ("hipped", 5), ("pyramidal", 3), ("quadruple_saltbox", 1), ("skillion", 11)])]
+#[case::kirchfeld("karlsruhe-kirchfeld.osm.pbf", 3018, 31, 8, &[("flat", 2726), ("gabled", 271), ("gambrel", 1), ("hipped", 5), ("pyramidal", 3), ("quadruple_saltbox", 1), ("skillion", 11)])]
+#[case::kirchfeld_json("karlsruhe-kirchfeld.overpass.json", 3018, 31, 8, &[("flat", 2726), ("gabled", 271), ("gambrel", 1), ("hipped", 5), ("pyramidal", 3), ("quadruple_saltbox", 1), ("skillion", 11)])]
 #[case::kit_nord("karlsruhe-kit-nord.osm.pbf", 587, 76, 15, &[("dome", 1), ("flat", 555), ("gabled", 19), ("skillion", 12)])]
 #[case::tram("tram-junction.osm.pbf", 277, 15, 3, &[("flat", 229), ("gabled", 29), ("gambrel", 2), ("hipped", 14), ("mansard", 2), ("round", 1)])]
 #[case::nuremberg("nuremberg-laufamholz.osm", 118, 0, 0, &[("flat", 108), ("gabled", 10)])]

@@ -310,3 +310,129 @@ fn a_small_bay_is_drawn_with_every_roof() {
         assert_strict_solid(&s, shape);
     }
 }
+
+/// Pairs of wall triangles of two buildings that lie in one plane, face the same way and
+/// overlap: the walls a renderer flickers between.
+#[allow(clippy::type_complexity)]
+fn coincident_walls(scene: &Scene) -> usize {
+    use geo::{Area, BooleanOps, polygon};
+    let m = &scene.mesh;
+    let walls: Vec<(u32, [f64; 3], f64, [[f64; 2]; 3])> = m
+        .triangles
+        .iter()
+        .enumerate()
+        .filter(|(t, _)| m.styles[*t].material == Material::Wall)
+        .filter_map(|(t, tri)| {
+            let [a, b, c] = m.corners(*tri);
+            let (u, v) = (
+                [b[0] - a[0], b[1] - a[1], b[2] - a[2]],
+                [c[0] - a[0], c[1] - a[1], c[2] - a[2]],
+            );
+            let n = [
+                u[1] * v[2] - u[2] * v[1],
+                u[2] * v[0] - u[0] * v[2],
+                u[0] * v[1] - u[1] * v[0],
+            ];
+            let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            (len > 1e-9).then(|| {
+                let n = n.map(|x| x / len);
+                let d = n[0] * a[0] + n[1] * a[1] + n[2] * a[2];
+                // In the wall's plane: along it (horizontal) and up.
+                let along = |p: [f64; 3]| [-n[1] * p[0] + n[0] * p[1], p[2]];
+                (m.styles[t].feature, n, d, [along(a), along(b), along(c)])
+            })
+        })
+        .collect();
+    let mut pairs = 0;
+    for (i, x) in walls.iter().enumerate() {
+        for y in &walls[i + 1..] {
+            let same_plane = x.0 != y.0
+                && (0..3).all(|k| (x.1[k] - y.1[k]).abs() < 1e-6)
+                && (x.2 - y.2).abs() < 1e-6;
+            if !same_plane {
+                continue;
+            }
+            let tri = |t: &[[f64; 2]; 3]| polygon![(x: t[0][0], y: t[0][1]), (x: t[1][0], y: t[1][1]), (x: t[2][0], y: t[2][1])];
+            if tri(&x.3).intersection(&tri(&y.3)).unsigned_area() > 1e-6 {
+                pairs += 1;
+            }
+        }
+    }
+    pairs
+}
+
+#[test]
+fn a_building_drawn_over_another_is_cut_out_of_it_and_no_walls_coincide() {
+    // A 10 m x 10 m, 6 m house, and over its south part a 10 m x 6 m, 9 m building sharing its
+    // nodes 1 and 2 (and so its south wall and part of its west and east walls).
+    let house = record(
+        OsmId::Way(10),
+        false,
+        ring(&[
+            (1, 0.0, 0.0),
+            (2, 10.0, 0.0),
+            (3, 10.0, 10.0),
+            (4, 0.0, 10.0),
+        ]),
+        vec![],
+        &[("building", "house"), ("height", "6")],
+    );
+    let over = record(
+        OsmId::Way(11),
+        false,
+        ring(&[(1, 0.0, 0.0), (2, 10.0, 0.0), (5, 10.0, 6.0), (6, 0.0, 6.0)]),
+        vec![],
+        &[("building", "yes"), ("height", "9")],
+    );
+    let before = scene(&[&house]);
+    assert_eq!(coincident_walls(&before), 0);
+    let s = scene(&[&house, &over]);
+    let f = floors(&s);
+    assert!(
+        close(f["way/10"], 40.0) && close(f["way/11"], 60.0),
+        "{f:?}"
+    );
+    assert_eq!(repairs(&s), vec![("way/10".to_owned(), "overlap_cut_out")]);
+    assert_eq!(s.buildings.area_lost_ids, vec![]);
+    assert_eq!(coincident_walls(&s), 0);
+    assert_strict_solid(&s, "over");
+}
+
+#[test]
+fn overlapping_outlines_sharing_a_node_keep_the_smaller_whole() {
+    // A 10 m x 10 m house; a 10 m x 6 m shed reaching 5 m out of its east side, from node 5 of
+    // the house's south wall: 30 m² overlap.
+    let house = record(
+        OsmId::Way(20),
+        false,
+        ring(&[
+            (1, 0.0, 0.0),
+            (5, 5.0, 0.0),
+            (2, 10.0, 0.0),
+            (3, 10.0, 10.0),
+            (4, 0.0, 10.0),
+        ]),
+        vec![],
+        &[("building", "house"), ("height", "6")],
+    );
+    let shed = record(
+        OsmId::Way(21),
+        false,
+        ring(&[(5, 5.0, 0.0), (7, 15.0, 0.0), (8, 15.0, 6.0), (9, 5.0, 6.0)]),
+        vec![],
+        &[("building", "shed"), ("height", "3")],
+    );
+    let s = scene(&[&house, &shed]);
+    let f = floors(&s);
+    assert!(
+        close(f["way/20"], 70.0) && close(f["way/21"], 60.0),
+        "{f:?}"
+    );
+    assert_eq!(repairs(&s), vec![("way/20".to_owned(), "overlap_cut_out")]);
+    assert_eq!(coincident_walls(&s), 0);
+    let c = check_closed(&s.mesh, s.cluster_triangles[0].clone());
+    assert!(
+        c.open_edges == 0 && c.degenerate == 0 && c.volume > 0.0,
+        "{c:?}"
+    );
+}

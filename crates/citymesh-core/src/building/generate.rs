@@ -10,6 +10,7 @@ use super::feature::BuildingFeature;
 use super::footprint::{Footprint, FootprintError, FootprintRing, NodeKey};
 use super::group::{Volume, mesh_group};
 use super::height_base::HeightBase;
+use super::overlap::cut_by_smaller;
 use super::params::BuildingParams;
 use super::pieces::{Pieces, cut_out, truncate};
 use super::roof::RoofShape;
@@ -92,6 +93,14 @@ pub fn generate_cluster_until(
         })
         .collect();
 
+    // Outlines drawn over each other: the smaller is cut out of the larger.
+    let overlapping = cut_by_smaller(
+        &prepared
+            .iter()
+            .map(|p| (&p.footprints[..], p.record.is_part))
+            .collect::<Vec<_>>(),
+    );
+
     let mut roofs: Vec<RoofSurface> = Vec::new();
     // The record each roof belongs to.
     let mut roof_ids: Vec<OsmId> = Vec::new();
@@ -146,10 +155,21 @@ pub fn generate_cluster_until(
             // Outline minus its parts and the courtyards set apart, then truncated at the scene
             // border.
             let apart = &p.apart[k];
+            let over = &overlapping[i];
             let mut pieces = Pieces::whole(footprint);
-            if !parts.is_empty() || !apart.is_empty() {
-                let cut: Vec<&Footprint> = parts.iter().flat_map(|q| &q.footprints).collect();
+            if !parts.is_empty() || !apart.is_empty() || !over.is_empty() {
+                let cut: Vec<&Footprint> = parts
+                    .iter()
+                    .copied()
+                    .chain(over.iter().map(|&j| &prepared[j]))
+                    .flat_map(|q| &q.footprints)
+                    .collect();
                 pieces = cut_out(footprint, &cut, apart);
+                if !over.is_empty() {
+                    stats
+                        .repaired_ids
+                        .push((p.record.id.to_string(), "overlap_cut_out"));
+                }
                 if pieces.footprints.is_empty() && !parts.is_empty() {
                     stats.outlines_covered_by_parts += 1;
                 }

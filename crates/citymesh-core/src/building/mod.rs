@@ -22,6 +22,7 @@ pub mod group;
 pub mod height_base;
 pub mod in_box;
 mod length;
+pub mod overlap;
 pub mod params;
 pub mod pieces;
 pub mod roof;
