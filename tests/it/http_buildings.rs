@@ -308,6 +308,14 @@ async fn a_building_carries_its_osm_identity_and_tags_in_every_kind_of_glb() {
             let got: f64 = row.remove(key).unwrap().as_str().unwrap().parse().unwrap();
             assert!((got - want).abs() < 1e-9, "{key} {got} in {uri}");
         }
+        // Its quality record: a closed solid, its floor drawn as its outline leaves it.
+        let quality: Vec<_> = ["closed", "strict_manifold", "floor_area", "outline_area"]
+            .map(|k| row.remove(k).unwrap_or_else(|| panic!("{k} in {uri}")))
+            .into();
+        assert_eq!(quality[0], "true", "{uri}");
+        assert_eq!(quality[2], quality[3], "{uri}");
+        let floor: f64 = quality[2].as_str().unwrap().parse().unwrap();
+        assert!(floor > 100.0, "{uri}: {floor}");
         // roof_probability is left out when no building in the file was classified.
         let mut expected = want.clone();
         if !row.contains_key("roof_probability") {

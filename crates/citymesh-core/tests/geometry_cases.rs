@@ -142,6 +142,14 @@ fn two_courtyards_sharing_an_edge_are_both_left_open() {
     let s = scene(&[&block]);
     let drawn = floors(&s)["relation/1"];
     assert!(close(drawn, 6000.0 - 400.0), "{drawn}");
+    // The quality record says so too.
+    let q = &s.buildings.features[0].quality;
+    assert!(q.closed && q.strict_manifold, "{q:?}");
+    assert_eq!(q.repairs, vec!["courtyard_touches_a_ring"]);
+    assert!(
+        close(q.floor_area, 5600.0) && close(q.outline_area, 5600.0),
+        "{q:?}"
+    );
     assert_eq!(
         repairs(&s),
         vec![("relation/1".to_owned(), "courtyard_touches_a_ring")]

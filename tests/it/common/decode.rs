@@ -319,6 +319,12 @@ pub fn feature_rows(glb: &[u8]) -> Vec<serde_json::Map<String, Value>> {
                         .map(|c| i64::from_le_bytes(c.try_into().unwrap()).to_string())
                         .collect()
                 }
+                ("BOOLEAN", _) => {
+                    assert_eq!(values.len(), count.div_ceil(8), "{name}");
+                    (0..count)
+                        .map(|i| (values[i / 8] >> (i % 8) & 1 == 1).to_string())
+                        .collect()
+                }
                 other => panic!("property {name} of type {other:?}"),
             };
         for (row, text) in rows.iter_mut().zip(texts) {

@@ -8,15 +8,25 @@ use crate::mesh::{Material, Mesh};
 use std::collections::BTreeMap;
 use std::ops::Range;
 
-/// For each building (feature row) of `wanted`, its wanted floor area less the area of its floor
-/// triangles among `triangles` of `mesh`, m², where that differs from 0 by over `tolerance`:
-/// positive when area was lost, negative when more was drawn.
+/// For each building (feature row) of `wanted`, its wanted floor area less the area `drawn`
+/// ([`floor_areas`]), m², where that differs from 0 by over `tolerance`: positive when area was
+/// lost, negative when more was drawn.
 pub fn uncovered_area(
     wanted: &BTreeMap<u32, f64>,
-    mesh: &Mesh,
-    triangles: Range<usize>,
+    drawn: &BTreeMap<u32, f64>,
     tolerance: f64,
 ) -> Vec<(u32, f64)> {
+    wanted
+        .iter()
+        .filter_map(|(&feature, want)| {
+            let lost = want - drawn.get(&feature).copied().unwrap_or(0.0);
+            (lost.abs() > tolerance).then_some((feature, lost))
+        })
+        .collect()
+}
+
+/// The floor area of each building (feature row) among `triangles` of `mesh`, m².
+pub fn floor_areas(mesh: &Mesh, triangles: Range<usize>) -> BTreeMap<u32, f64> {
     let mut drawn: BTreeMap<u32, f64> = BTreeMap::new();
     for t in triangles {
         let (Some(&tri), Some(style)) = (mesh.triangles.get(t), mesh.styles.get(t)) else {
@@ -29,13 +39,7 @@ pub fn uncovered_area(
         let area = ((b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])).abs() / 2.0;
         *drawn.entry(style.feature).or_default() += area;
     }
-    wanted
-        .iter()
-        .filter_map(|(&feature, want)| {
-            let lost = want - drawn.get(&feature).copied().unwrap_or(0.0);
-            (lost.abs() > tolerance).then_some((feature, lost))
-        })
-        .collect()
+    drawn
 }
 
 #[cfg(test)]
@@ -91,11 +95,20 @@ mod tests {
         mesh_group(&volumes, &[roof(&house), roof(&shed)], &mut mesh);
         let all = 0..mesh.triangles.len();
         let mut wanted = BTreeMap::from([(0, 60.0), (1, 12.0)]);
-        assert_eq!(uncovered_area(&wanted, &mesh, all.clone(), 1.0), vec![]);
+        assert_eq!(
+            uncovered_area(&wanted, &floor_areas(&mesh, all.clone()), 1.0),
+            vec![]
+        );
         // A shed that should have been 4 m x 2 m was drawn 4 m² too big.
         wanted.insert(1, 8.0);
-        assert_eq!(uncovered_area(&wanted, &mesh, all.clone(), 1.0).len(), 1);
-        assert!((uncovered_area(&wanted, &mesh, all.clone(), 1.0)[0].1 + 4.0).abs() < 1e-9);
+        assert_eq!(
+            uncovered_area(&wanted, &floor_areas(&mesh, all.clone()), 1.0).len(),
+            1
+        );
+        assert!(
+            (uncovered_area(&wanted, &floor_areas(&mesh, all.clone()), 1.0)[0].1 + 4.0).abs()
+                < 1e-9
+        );
         wanted.insert(1, 12.0);
 
         // Drop one floor triangle of the house: half its floor (30 m²) or less goes missing.
@@ -105,7 +118,7 @@ mod tests {
         let [a, b, c] = mesh.corners(mesh.triangles[floor]);
         let gone = ((b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])).abs() / 2.0;
         mesh.styles[floor].material = Material::Wall;
-        let lost = uncovered_area(&wanted, &mesh, all.clone(), 1.0);
+        let lost = uncovered_area(&wanted, &floor_areas(&mesh, all.clone()), 1.0);
         assert_eq!(lost.len(), 1);
         assert_eq!(lost[0].0, 0);
         assert!(
@@ -113,6 +126,9 @@ mod tests {
             "{lost:?}, {gone}"
         );
         // Under the tolerance it is not reported.
-        assert_eq!(uncovered_area(&wanted, &mesh, all, gone + 0.1), vec![]);
+        assert_eq!(
+            uncovered_area(&wanted, &floor_areas(&mesh, all), gone + 0.1),
+            vec![]
+        );
     }
 }

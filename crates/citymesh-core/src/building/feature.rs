@@ -80,6 +80,39 @@ pub struct BuildingFeature {
     pub centre: [f64; 2],
     /// Every OSM tag of the element as a JSON object, when asked ([`TagProperties::All`]).
     pub osm_tags: Option<String>,
+    /// How well its geometry was drawn.
+    pub quality: Quality,
+}
+
+/// A building's geometry record, as 3DBAG ships validation codes: whether its group is a closed
+/// surface and a strict 2-manifold, what was repaired, and its floor area drawn against the area
+/// its outline leaves.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Quality {
+    /// Every edge of the building's group (the volumes it touches) is met by one running the
+    /// other way.
+    pub closed: bool,
+    /// Every edge of the group has exactly two triangles.
+    pub strict_manifold: bool,
+    /// What was drawn other than the data describes (`overlap_cut_out`, ...), in order.
+    pub repairs: Vec<&'static str>,
+    /// Floor area drawn, m² (to 0.01).
+    pub floor_area: f64,
+    /// The area the outline leaves, m²: less its courtyards, its parts, smaller buildings drawn
+    /// over it and what the scene border cuts off.
+    pub outline_area: f64,
+}
+
+impl Default for Quality {
+    fn default() -> Self {
+        Self {
+            closed: true,
+            strict_manifold: true,
+            repairs: Vec::new(),
+            floor_area: 0.0,
+            outline_area: 0.0,
+        }
+    }
 }
 
 impl BuildingFeature {
@@ -120,6 +153,7 @@ impl BuildingFeature {
                 [lon, lat]
             },
             osm_tags: None,
+            quality: Quality::default(),
         }
     }
 
@@ -267,6 +301,31 @@ pub static BUILDING_CLASS: ClassDef = ClassDef {
             PropertyType::String,
             "Every OSM tag of the element as a JSON object, when asked for (tags=all)",
         ),
+        property(
+            "closed",
+            PropertyType::Boolean,
+            "Whether the building's group (the volumes it touches) is a closed surface: every edge is met by one running the other way",
+        ),
+        property(
+            "strict_manifold",
+            PropertyType::Boolean,
+            "Whether every edge of the building's group has exactly two triangles (false where volumes touch only along a corner line)",
+        ),
+        property(
+            "repairs",
+            PropertyType::String,
+            "What was drawn other than the data describes, comma-separated (e.g. overlap_cut_out, courtyard_touches_a_ring, split_where_rings_touch); empty: nothing",
+        ),
+        property(
+            "floor_area",
+            PropertyType::Float32 { no_data: None },
+            "Floor area drawn, square metres",
+        ),
+        property(
+            "outline_area",
+            PropertyType::Float32 { no_data: None },
+            "The area the outline leaves (less its courtyards, its parts, smaller buildings drawn over it and the scene border), square metres",
+        ),
     ],
 };
 
@@ -316,6 +375,11 @@ pub fn property_table(features: &[BuildingFeature]) -> PropertyTable {
             Column::Float64(features.iter().map(|f| f.centre[1]).collect()),
             Column::Float64(features.iter().map(|f| f.centre[0]).collect()),
             strings(&|f| f.osm_tags.clone().unwrap_or_default()),
+            Column::Booleans(features.iter().map(|f| f.quality.closed).collect()),
+            Column::Booleans(features.iter().map(|f| f.quality.strict_manifold).collect()),
+            strings(&|f| f.quality.repairs.join(",")),
+            floats(&|f| f.quality.floor_area as f32),
+            floats(&|f| f.quality.outline_area as f32),
         ],
     }
 }

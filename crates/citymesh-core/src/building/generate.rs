@@ -5,8 +5,8 @@
 
 use super::axes::RoofAxes;
 use super::cluster::part_of;
-use super::coverage::uncovered_area;
-use super::feature::BuildingFeature;
+use super::coverage::{floor_areas, uncovered_area};
+use super::feature::{BuildingFeature, Quality};
 use super::footprint::{Footprint, FootprintError, FootprintRing, NodeKey};
 use super::group::{Volume, mesh_group};
 use super::height_base::HeightBase;
@@ -69,6 +69,7 @@ pub fn generate_cluster_until(
     stats: &mut BuildingStats,
     stop: &(dyn Fn() -> bool + Sync),
 ) {
+    let (first_feature, first_repair) = (stats.features.len(), stats.repaired_ids.len());
     let mut prepared: Vec<Prepared> = Vec::with_capacity(records.len());
     for &record in records {
         if stop() {
@@ -269,18 +270,38 @@ pub fn generate_cluster_until(
     }
     stats.shared_walls += report.shared_edges;
     stats.dropped_constraints += report.dropped_constraints;
-    // Nothing dropped unreported: every building's floor covers its pieces.
-    for (feature, lost) in uncovered_area(
-        &wanted,
-        mesh,
-        triangles..mesh.triangles.len(),
-        MAX_AREA_LOSS_M2,
-    ) {
+    // Nothing dropped unreported: every building's floor covers what its outline leaves.
+    let drawn = floor_areas(mesh, triangles..mesh.triangles.len());
+    for (feature, lost) in uncovered_area(&wanted, &drawn, MAX_AREA_LOSS_M2) {
         if let Some(f) = stats.features.get(feature as usize) {
             let id = f.id.to_string();
             stats.area_lost_ids.push((id, (lost * 10.0).round() / 10.0));
         }
     }
+    // Each building's quality record: its group's surface, its repairs, its areas.
+    let surface = check_closed(mesh, triangles..mesh.triangles.len());
+    let repaired = &stats.repaired_ids[first_repair..];
+    for (row, f) in stats.features.iter_mut().enumerate().skip(first_feature) {
+        let row = row as u32;
+        let id = f.id.to_string();
+        f.quality = Quality {
+            closed: surface.open_edges == 0,
+            strict_manifold: surface.open_edges == 0 && surface.non_manifold_edges == 0,
+            repairs: repaired
+                .iter()
+                .filter(|(r, _)| *r == id)
+                .map(|(_, what)| *what)
+                .collect(),
+            // To 0.01 m²: what the data's precision carries.
+            floor_area: hundredths(drawn.get(&row).copied().unwrap_or(0.0)),
+            outline_area: hundredths(wanted.get(&row).copied().unwrap_or(0.0)),
+        };
+        f.quality.repairs.dedup();
+    }
+}
+
+fn hundredths(x: f64) -> f64 {
+    (x * 100.0).round() / 100.0
 }
 
 /// A record's footprint and heights as the generator builds it (from its first outer ring's

@@ -71,12 +71,26 @@ impl BuildingStats {
         for s in skipped {
             self.skip(s.id, s.reason.name());
         }
-        self.repaired_ids.extend(
-            repaired
-                .iter()
-                .filter(|r| used(r.id))
-                .map(|r| (r.id.to_string(), r.what)),
-        );
+        let used: Vec<&Repaired> = repaired.iter().filter(|r| used(r.id)).collect();
+        if used.is_empty() {
+            return;
+        }
+        self.repaired_ids
+            .extend(used.iter().map(|r| (r.id.to_string(), r.what)));
+        // And in the quality record of each building drawn from the record.
+        let mut rows: std::collections::HashMap<OsmId, Vec<usize>> =
+            std::collections::HashMap::new();
+        for (row, f) in self.features.iter().enumerate() {
+            rows.entry(f.id).or_default().push(row);
+        }
+        for r in used {
+            for &row in rows.get(&r.id).into_iter().flatten() {
+                let repairs = &mut self.features[row].quality.repairs;
+                if !repairs.contains(&r.what) {
+                    repairs.push(r.what);
+                }
+            }
+        }
     }
 
     pub fn skip(&mut self, id: OsmId, reason: &'static str) {

@@ -26,6 +26,8 @@ pub enum PropertyType {
     Float64,
     /// 64-bit signed integer.
     Int64,
+    /// True or false, always given.
+    Boolean,
 }
 
 /// One property of a class.
@@ -86,6 +88,10 @@ impl ClassDef {
                     def.insert("componentType".into(), json!("INT64"));
                     def.insert("required".into(), json!(true));
                 }
+                PropertyType::Boolean => {
+                    def.insert("type".into(), json!("BOOLEAN"));
+                    def.insert("required".into(), json!(true));
+                }
             }
             if let Some(semantic) = p.semantic {
                 def.insert("semantic".into(), json!(semantic));
@@ -108,6 +114,7 @@ pub enum Column {
     Float32(Vec<f32>),
     Float64(Vec<f64>),
     Int64(Vec<i64>),
+    Booleans(Vec<bool>),
 }
 
 impl Column {
@@ -131,6 +138,7 @@ impl Column {
             Column::Float32(v) => v.len(),
             Column::Float64(v) => v.len(),
             Column::Int64(v) => v.len(),
+            Column::Booleans(v) => v.len(),
         }
     }
 }
@@ -199,6 +207,14 @@ impl PropertyTable {
                 }
                 Column::Int64(values) => {
                     let data: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+                    json!({"values": add(&data, views)})
+                }
+                // A bitstream, the first row in the lowest bit of the first byte.
+                Column::Booleans(values) => {
+                    let mut data = vec![0u8; values.len().div_ceil(8)];
+                    for (i, _) in values.iter().enumerate().filter(|(_, v)| **v) {
+                        data[i / 8] |= 1 << (i % 8);
+                    }
                     json!({"values": add(&data, views)})
                 }
             };
