@@ -832,9 +832,17 @@ async fn a_server_following_a_feed_serves_each_change_and_says_how_fresh_it_is()
     assert_eq!(h["replication"]["timestamp"], "2026-12-07T10:41:00Z");
     assert_eq!(h["replication"]["url"], url.as_str());
     assert!(h["replication"]["age_s"].as_i64().unwrap() >= 0);
-    // The same server, no restart: the tile shows the new height.
-    let a = get(&app, &format!("/tiles/16/{}/{}.glb", t.x, t.y)).await;
-    assert_eq!(row(&a.body, b.id).unwrap()["height"], "44.25");
+    // The same server, no restart: the tile shows the new height. /health shows the sequence
+    // once its transaction commits; the tiles over the change are dropped just after, so the
+    // tile is asked again until it shows it (a tile left stale would fail at the deadline).
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    let tile = format!("/tiles/16/{}/{}.glb", t.x, t.y);
+    let mut height = row(&get(&app, &tile).await.body, b.id).unwrap()["height"].clone();
+    while height != "44.25" && std::time::Instant::now() < deadline {
+        tokio::time::sleep(std::time::Duration::from_millis(20)).await;
+        height = row(&get(&app, &tile).await.body, b.id).unwrap()["height"].clone();
+    }
+    assert_eq!(height, "44.25");
     // The CDN check. The tree is made again over the change (in the background): wait for the
     // leaf's new version.
     let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
