@@ -7,7 +7,7 @@
 
 use citymesh_core::building::clusters;
 use citymesh_core::building::set::BuildingSet;
-use citymesh_core::mesh::{Encoding, Placement};
+use citymesh_core::mesh::{Encoding, Placement, check_closed, check_manifold};
 use citymesh_core::osm::read_buildings;
 use citymesh_core::scene::{Border, Scene};
 use citymesh_core::terrain::{ElevationModel, HgtTile};
@@ -76,6 +76,21 @@ fn kirchfeld(c: &mut Criterion) {
     };
     c.bench_function("kirchfeld_scene_to_glb", |b| b.iter(|| build().to_glb()));
     c.bench_function("kirchfeld_scene_mesh_only", |b| b.iter(build));
+    // Over every group: the quality record's check, which the mesh above includes (the solids,
+    // split where volumes touch along a line), and the closedness check tests use.
+    let groups_checked = |check: &dyn Fn(std::ops::Range<usize>) -> usize| {
+        scene
+            .cluster_triangles
+            .iter()
+            .map(|r| check(r.clone()))
+            .sum::<usize>()
+    };
+    c.bench_function("kirchfeld_groups_solids", |b| {
+        b.iter(|| groups_checked(&|r| check_manifold(&scene.mesh, r).report.solids));
+    });
+    c.bench_function("kirchfeld_groups_closed", |b| {
+        b.iter(|| groups_checked(&|r| check_closed(&scene.mesh, r).open_edges));
+    });
     // The same scene with its groups shared among two threads (as `citymesh scene` does).
     c.bench_function("kirchfeld_scene_to_glb_2_workers", |b| {
         b.iter(|| {

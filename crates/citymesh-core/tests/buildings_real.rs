@@ -7,7 +7,7 @@ mod common;
 
 use citymesh_core::building::set::BuildingSet;
 use citymesh_core::geo::{GeoBbox, LocalFrame};
-use citymesh_core::mesh::check_closed;
+use citymesh_core::mesh::{check_closed, check_manifold};
 use citymesh_core::osm::{OsmBuildings, read_buildings};
 use citymesh_core::scene::{Border, Scene};
 use citymesh_core::terrain::ElevationModel;
@@ -474,4 +474,50 @@ fn no_floor_differs_from_its_outline_unreported(#[case] file: &str) {
         }
     }
     assert_eq!(unreported, vec![], "{file}: (id, outline area, drawn)");
+}
+
+/// Per file: groups; groups whose every edge has two triangles by position; groups that are
+/// strict 2-manifold solids once the lines where volumes touch are split; groups where a solid
+/// touches itself (a pinch); groups whose faces do not pair (volumes through each other).
+/// Every building's quality record follows its solid.
+#[rstest]
+#[case::kirchfeld("karlsruhe-kirchfeld.osm.pbf", [1382, 1337, 1358, 24, 0])]
+#[case::kit_nord("karlsruhe-kit-nord.osm.pbf", [359, 352, 353, 5, 4])]
+#[case::tram("tram-junction.osm.pbf", [44, 40, 40, 4, 1])]
+#[case::nuremberg("nuremberg-laufamholz.osm", [97, 97, 97, 0, 0])]
+#[case::san_francisco("san-francisco.overpass.json.gz", [100, 93, 94, 6, 0])]
+fn groups_are_split_into_strict_solids_where_volumes_touch_along_a_line(
+    #[case] file: &str,
+    #[case] counts: [usize; 5],
+) {
+    let (_, scene) = whole_scene(file);
+    let mut found = [scene.cluster_triangles.len(), 0, 0, 0, 0];
+    let mut strict_buildings = std::collections::BTreeSet::new();
+    for range in &scene.cluster_triangles {
+        let closed = check_closed(&scene.mesh, range.clone());
+        let solids = check_manifold(&scene.mesh, range.clone());
+        let r = solids.report;
+        found[1] += (closed.non_manifold_edges == 0) as usize;
+        found[2] += r.is_strict() as usize;
+        found[3] += (r.pinched_vertices > 0) as usize;
+        found[4] += (r.unpaired_edges > 0) as usize;
+        // A building is strict when every solid its triangles belong to is.
+        let mut strict: BTreeMap<u32, bool> = BTreeMap::new();
+        for (t, &ok) in range.clone().zip(&solids.strict) {
+            *strict.entry(scene.mesh.styles[t].feature).or_insert(true) &= ok;
+        }
+        strict_buildings.extend(strict.into_iter().filter(|&(_, ok)| ok).map(|(f, _)| f));
+    }
+    assert_eq!(
+        found, counts,
+        "{file}: [groups, manifold by position, strict solids, pinched, unpaired]"
+    );
+    for (row, f) in scene.buildings.features.iter().enumerate() {
+        assert_eq!(
+            f.quality.strict_manifold,
+            strict_buildings.contains(&(row as u32)),
+            "{file}: {}",
+            f.id
+        );
+    }
 }

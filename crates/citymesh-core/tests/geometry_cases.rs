@@ -5,7 +5,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code: failing is the point
 
 use citymesh_core::geo::{GeoBbox, LocalFrame};
-use citymesh_core::mesh::{Material, check_closed};
+use citymesh_core::mesh::{Material, check_closed, check_manifold};
 use citymesh_core::osm::{BuildingRecord, OsmId, Ring, RingNode};
 use citymesh_core::scene::{Border, Scene};
 use citymesh_core::terrain::ElevationModel;
@@ -199,6 +199,16 @@ fn a_courtyard_touching_the_outline_at_a_node_is_left_open() {
         c.open_edges == 0 && c.degenerate == 0 && c.volume > 0.0,
         "{c:?}"
     );
+    // The footprint touches itself at node 2, so the block touches itself along that corner
+    // line: one solid, pinched at the line's ends, and the record says it is not strict.
+    let solids = check_manifold(&s.mesh, s.cluster_triangles[0].clone()).report;
+    assert_eq!(
+        (solids.solids, solids.split_edges, solids.pinched_vertices),
+        (1, 1, 2),
+        "{solids:?}"
+    );
+    let q = &s.buildings.features[0].quality;
+    assert!(q.closed && !q.strict_manifold, "{q:?}");
 }
 
 #[test]
@@ -244,6 +254,8 @@ fn a_part_touching_its_outline_at_one_node_is_cut_out_of_it() {
         c.open_edges == 0 && c.degenerate == 0 && c.volume > 0.0,
         "{c:?}"
     );
+    let solids = check_manifold(&s.mesh, s.cluster_triangles[0].clone()).report;
+    assert!(solids.is_strict(), "{c:?} {solids:?}");
 }
 
 #[test]
@@ -443,4 +455,114 @@ fn overlapping_outlines_sharing_a_node_keep_the_smaller_whole() {
         c.open_edges == 0 && c.degenerate == 0 && c.volume > 0.0,
         "{c:?}"
     );
+    let solids = check_manifold(&s.mesh, s.cluster_triangles[0].clone()).report;
+    assert!(solids.is_strict(), "{c:?} {solids:?}");
+}
+
+/// A square house `(x0, y0)` to `(x0 + 10, y0 + 10)`, its corners nodes `first..first + 4`
+/// unless a corner is given a shared node.
+fn square(id: i64, x0: f64, y0: f64, nodes: [i64; 4], height: &str) -> BuildingRecord {
+    record(
+        OsmId::Way(id),
+        false,
+        ring(&[
+            (nodes[0], x0, y0),
+            (nodes[1], x0 + 10.0, y0),
+            (nodes[2], x0 + 10.0, y0 + 10.0),
+            (nodes[3], x0, y0 + 10.0),
+        ]),
+        vec![],
+        &[("building", "house"), ("height", height)],
+    )
+}
+
+/// Checks each building's own triangles as one surface.
+fn per_building(scene: &Scene) -> BTreeMap<String, citymesh_core::mesh::ClosedReport> {
+    let m = &scene.mesh;
+    let mut by_feature: BTreeMap<u32, citymesh_core::mesh::Mesh> = BTreeMap::new();
+    for (t, tri) in m.triangles.iter().enumerate() {
+        if m.styles[t].feature == citymesh_core::mesh::NO_FEATURE {
+            continue;
+        }
+        let one = by_feature.entry(m.styles[t].feature).or_default();
+        let base = one.positions.len() as u32;
+        for p in m.corners(*tri) {
+            one.push_vertex(p);
+        }
+        one.push_triangle([base, base + 1, base + 2], m.styles[t]);
+    }
+    by_feature
+        .into_iter()
+        .map(|(f, one)| {
+            let id = scene.buildings.features[f as usize].id.to_string();
+            (id, check_closed(&one, 0..one.triangles.len()))
+        })
+        .collect()
+}
+
+#[test]
+fn houses_touching_at_a_corner_line_are_two_strict_solids() {
+    // Two 10 m x 10 m houses, 6 m high, meeting diagonally at node 3: by position, the corner
+    // line's edge has four triangles.
+    let a = square(30, 0.0, 0.0, [1, 2, 3, 4], "6");
+    let b = square(31, 10.0, 10.0, [3, 5, 6, 7], "6");
+    let s = scene(&[&a, &b]);
+    let group = check_closed(&s.mesh, s.cluster_triangles[0].clone());
+    assert_eq!(
+        (group.open_edges, group.non_manifold_edges),
+        (0, 1),
+        "{group:?}"
+    );
+    // Split along that line, each house is its own solid: every edge of each has exactly two
+    // triangles, by position, checked on its own triangles.
+    let solids = check_manifold(&s.mesh, s.cluster_triangles[0].clone()).report;
+    assert_eq!((solids.solids, solids.split_edges), (2, 1), "{solids:?}");
+    assert!(solids.is_strict());
+    for (id, r) in per_building(&s) {
+        assert!(r.is_closed_and_outward(), "{id}: {r:?}");
+    }
+    for f in &s.buildings.features {
+        assert!(
+            f.quality.closed && f.quality.strict_manifold,
+            "{:?}",
+            f.quality
+        );
+    }
+    assert_eq!(coincident_walls(&s), 0);
+}
+
+#[test]
+fn four_houses_of_two_heights_at_one_corner_report_the_pinch() {
+    // Four houses around node 5, the south-west and north-east 10 m, the others 5 m: above
+    // 5 m the two tall houses touch along the corner line, and below they are one solid
+    // through the low houses. That solid touches itself; no split makes it a 2-manifold, and
+    // the record of each of the four says so.
+    let sw = square(40, 0.0, 0.0, [1, 2, 5, 4], "10");
+    let se = square(41, 10.0, 0.0, [2, 3, 6, 5], "5");
+    let ne = square(42, 10.0, 10.0, [5, 6, 8, 7], "10");
+    let nw = square(43, 0.0, 10.0, [4, 5, 7, 9], "5");
+    let s = scene(&[&sw, &se, &ne, &nw]);
+    let range = s.cluster_triangles[0].clone();
+    let group = check_closed(&s.mesh, range.clone());
+    assert!(group.open_edges == 0 && group.volume > 0.0, "{group:?}");
+    let solids = check_manifold(&s.mesh, range).report;
+    assert_eq!(
+        (
+            solids.solids,
+            solids.unpaired_edges,
+            solids.pinched_vertices
+        ),
+        (1, 0, 1),
+        "{solids:?}"
+    );
+    for f in &s.buildings.features {
+        assert!(
+            f.quality.closed && !f.quality.strict_manifold,
+            "{:?}",
+            f.quality
+        );
+    }
+    // The floors are whole: nothing lost, only the topology is not strict.
+    let f = floors(&s);
+    assert!(f.values().all(|&a| close(a, 100.0)), "{f:?}");
 }

@@ -20,9 +20,10 @@ use super::skeleton_roof::SkeletonRoof;
 use super::stats::{BuildingStats, MAX_AREA_LOSS_M2};
 use super::tags::BuildingTags;
 use crate::geo::{GeoBbox, LocalFrame};
-use crate::mesh::{Mesh, check_closed};
+use crate::mesh::{Mesh, check_closed, check_manifold};
 use crate::osm::{BuildingRecord, OsmId, Ring};
 use crate::terrain::ElevationModel;
+use foldhash::HashMap;
 use std::collections::BTreeMap;
 
 /// What every building of a scene is generated against.
@@ -278,15 +279,22 @@ pub fn generate_cluster_until(
             stats.area_lost_ids.push((id, (lost * 10.0).round() / 10.0));
         }
     }
-    // Each building's quality record: its group's surface, its repairs, its areas.
-    let surface = check_closed(mesh, triangles..mesh.triangles.len());
+    // Each building's quality record: its group's surface, its solids, its repairs, its areas.
+    let group = triangles..mesh.triangles.len();
+    let solids = check_manifold(mesh, group.clone());
+    // A building is a strict 2-manifold when every solid its triangles belong to is.
+    let mut strict: HashMap<u32, bool> = HashMap::default();
+    for (t, &ok) in group.zip(&solids.strict) {
+        *strict.entry(mesh.styles[t].feature).or_insert(true) &= ok;
+    }
     let repaired = &stats.repaired_ids[first_repair..];
     for (row, f) in stats.features.iter_mut().enumerate().skip(first_feature) {
         let row = row as u32;
         let id = f.id.to_string();
         f.quality = Quality {
-            closed: surface.open_edges == 0,
-            strict_manifold: surface.open_edges == 0 && surface.non_manifold_edges == 0,
+            closed: solids.report.open_edges == 0,
+            strict_manifold: solids.report.open_edges == 0
+                && strict.get(&row).copied().unwrap_or(false),
             repairs: repaired
                 .iter()
                 .filter(|(r, _)| *r == id)

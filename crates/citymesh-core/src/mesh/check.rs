@@ -6,7 +6,7 @@
 //! vertices.
 
 use super::Mesh;
-use std::collections::HashMap;
+use foldhash::HashMap;
 
 /// Positions closer than this (metres, per axis) are one vertex.
 pub const WELD: f64 = 1e-6;
@@ -39,8 +39,8 @@ impl ClosedReport {
 /// Checks the triangles of `mesh` with index in `range` as one surface.
 pub fn check_closed(mesh: &Mesh, range: std::ops::Range<usize>) -> ClosedReport {
     let mut report = ClosedReport::default();
-    let mut ids: HashMap<[i64; 3], u32> = HashMap::new();
-    let mut directed: HashMap<(u32, u32), i32> = HashMap::new();
+    let mut ids: HashMap<[i64; 3], u32> = HashMap::default();
+    let mut directed: HashMap<(u32, u32), i32> = HashMap::default();
     let origin = range
         .clone()
         .next()
@@ -69,7 +69,7 @@ pub fn check_closed(mesh: &Mesh, range: std::ops::Range<usize>) -> ClosedReport 
             *directed.entry((id[k], id[(k + 1) % 3])).or_default() += 1;
         }
     }
-    let mut undirected: HashMap<(u32, u32), i32> = HashMap::new();
+    let mut undirected: HashMap<(u32, u32), i32> = HashMap::default();
     for (&(a, b), &count) in &directed {
         let back = directed.get(&(b, a)).copied().unwrap_or(0);
         if count > back {

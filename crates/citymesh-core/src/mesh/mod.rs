@@ -6,10 +6,12 @@
 pub mod check;
 mod colour;
 pub mod gltf;
+pub mod manifold;
 
 pub use check::{ClosedReport, check_closed};
 pub use colour::Rgb;
 pub use gltf::{EncodedGlb, Encoding, Placement, encode_glb};
+pub use manifold::{ManifoldReport, Solids, check_manifold};
 
 /// The cross product `(b - a) x (c - a)`: the normal of a counter-clockwise triangle, with twice
 /// its area as length.
