@@ -19,3 +19,4 @@ pub mod roof_prior;
 pub mod scene;
 pub mod terrain;
 pub mod tiles3d;
+mod union_find;

@@ -4,6 +4,7 @@
 
 use crate::geo::GeoBbox;
 use crate::osm::{BuildingRecord, RingNode};
+use crate::union_find::UnionFind;
 use foldhash::HashMap;
 
 /// The identity of a node for adjacency: its id, or its exact coordinates when it has none.
@@ -18,24 +19,6 @@ impl NodeRef {
         match n.id {
             Some(id) => NodeRef::Id(id),
             None => NodeRef::At(n.lon.to_bits(), n.lat.to_bits()),
-        }
-    }
-}
-
-struct UnionFind(Vec<usize>);
-
-impl UnionFind {
-    fn find(&mut self, mut i: usize) -> usize {
-        while self.0[i] != i {
-            self.0[i] = self.0[self.0[i]];
-            i = self.0[i];
-        }
-        i
-    }
-    fn union(&mut self, a: usize, b: usize) {
-        let (a, b) = (self.find(a), self.find(b));
-        if a != b {
-            self.0[a.max(b)] = a.min(b);
         }
     }
 }
@@ -94,7 +77,7 @@ pub fn records_extent(records: &[BuildingRecord]) -> Option<GeoBbox> {
 /// Groups records into clusters; each cluster lists record indices in ascending order, and the
 /// clusters are ordered by their first record.
 pub fn clusters<R: std::borrow::Borrow<BuildingRecord>>(records: &[R]) -> Vec<Vec<usize>> {
-    let mut uf = UnionFind((0..records.len()).collect());
+    let mut uf = UnionFind::new(records.len());
     let mut first_with: HashMap<NodeRef, usize> = HashMap::default();
     for (i, b) in records.iter().map(R::borrow).enumerate() {
         for node in b.outers.iter().chain(&b.inners).flat_map(|r| &r.nodes) {

@@ -11,6 +11,62 @@ use foldhash::HashMap;
 /// Positions closer than this (metres, per axis) are one vertex.
 pub const WELD: f64 = 1e-6;
 
+/// Positions welded to vertex ids in the order they are first seen, as both checks take them.
+pub(super) struct Weld {
+    ids: HashMap<[i64; 3], u32>,
+    /// Each vertex id's position.
+    pub points: Vec<[f64; 3]>,
+}
+
+impl Weld {
+    pub(super) fn with_capacity(triangles: usize) -> Self {
+        let mut ids = HashMap::default();
+        ids.reserve(triangles);
+        Self {
+            ids,
+            points: Vec::with_capacity(triangles),
+        }
+    }
+
+    /// A triangle's welded corners, its corners less `origin` and its normal (twice its area
+    /// long); `None` when it is degenerate: a non-finite coordinate, two corners welded
+    /// together, or no area measured from `origin`.
+    pub(super) fn triangle(&mut self, corners: [[f64; 3]; 3], origin: [f64; 3]) -> Option<Welded> {
+        if corners.iter().flatten().any(|c| !c.is_finite()) {
+            return None;
+        }
+        let id = corners.map(|p| {
+            let key = p.map(|c| (c / WELD).round() as i64);
+            let next = self.points.len() as u32;
+            *self.ids.entry(key).or_insert_with(|| {
+                self.points.push(p);
+                next
+            })
+        });
+        let [a, b, c] = corners.map(|p| [p[0] - origin[0], p[1] - origin[1], p[2] - origin[2]]);
+        let n = super::triangle_normal(a, b, c);
+        let area2 = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        if id[0] == id[1] || id[1] == id[2] || id[0] == id[2] || area2 <= 1e-10 {
+            return None;
+        }
+        Some(Welded {
+            ids: id,
+            corners: [a, b, c],
+            normal: n,
+        })
+    }
+}
+
+/// A triangle [`Weld::triangle`] keeps.
+pub(super) struct Welded {
+    /// Its corners' vertex ids.
+    pub ids: [u32; 3],
+    /// Its corners less the origin.
+    pub corners: [[f64; 3]; 3],
+    /// Its normal, twice its area long.
+    pub normal: [f64; 3],
+}
+
 /// The findings of [`check_closed`].
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct ClosedReport {
@@ -39,7 +95,7 @@ impl ClosedReport {
 /// Checks the triangles of `mesh` with index in `range` as one surface.
 pub fn check_closed(mesh: &Mesh, range: std::ops::Range<usize>) -> ClosedReport {
     let mut report = ClosedReport::default();
-    let mut ids: HashMap<[i64; 3], u32> = HashMap::default();
+    let mut weld = Weld::with_capacity(range.len());
     let mut directed: HashMap<(u32, u32), i32> = HashMap::default();
     let origin = range
         .clone()
@@ -47,23 +103,15 @@ pub fn check_closed(mesh: &Mesh, range: std::ops::Range<usize>) -> ClosedReport 
         .map_or([0.0; 3], |t| mesh.positions[mesh.triangles[t][0] as usize]);
     for t in range {
         report.triangles += 1;
-        let corners = mesh.corners(mesh.triangles[t]);
-        if corners.iter().flatten().any(|c| !c.is_finite()) {
+        let Some(Welded {
+            ids: id,
+            corners: [a, _, _],
+            normal: n,
+        }) = weld.triangle(mesh.corners(mesh.triangles[t]), origin)
+        else {
             report.degenerate += 1;
             continue;
-        }
-        let id = corners.map(|p| {
-            let key = p.map(|c| (c / WELD).round() as i64);
-            let next = ids.len() as u32;
-            *ids.entry(key).or_insert(next)
-        });
-        let [a, b, c] = corners.map(|p| [p[0] - origin[0], p[1] - origin[1], p[2] - origin[2]]);
-        let n = super::triangle_normal(a, b, c);
-        let area2 = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-        if id[0] == id[1] || id[1] == id[2] || id[0] == id[2] || area2 <= 1e-10 {
-            report.degenerate += 1;
-            continue;
-        }
+        };
         report.volume += (a[0] * n[0] + a[1] * n[1] + a[2] * n[2]) / 6.0;
         for k in 0..3 {
             *directed.entry((id[k], id[(k + 1) % 3])).or_default() += 1;

@@ -14,8 +14,9 @@
 //!
 //! Vertices are welded by position first, as in [`super::check`].
 
-use super::{Mesh, check::WELD, triangle_normal};
-use foldhash::{HashMap, HashSet};
+use super::{Mesh, check::Weld};
+use crate::union_find::UnionFind;
+use foldhash::HashSet;
 
 /// The findings of [`check_manifold`].
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -60,38 +61,22 @@ pub struct Solids {
 /// Checks the triangles of `mesh` with index in `range` as solids that may touch along lines.
 pub fn check_manifold(mesh: &Mesh, range: std::ops::Range<usize>) -> Solids {
     let mut report = ManifoldReport::default();
-    let mut ids: HashMap<[i64; 3], u32> = HashMap::default();
-    ids.reserve(range.len());
-    let mut points: Vec<[f64; 3]> = Vec::with_capacity(range.len());
+    let mut weld = Weld::with_capacity(range.len());
     // Welded corners of every triangle with area, and where it stands in the range.
     let mut tris: Vec<[u32; 3]> = Vec::with_capacity(range.len());
     let mut index: Vec<u32> = Vec::with_capacity(range.len());
     let first = range.start;
     let mut strict = vec![false; range.len()];
     for t in range {
-        let corners = mesh.corners(mesh.triangles[t]);
-        if corners.iter().flatten().any(|c| !c.is_finite()) {
+        let Some(welded) = weld.triangle(mesh.corners(mesh.triangles[t]), [0.0; 3]) else {
             report.degenerate += 1;
             continue;
-        }
-        let id = corners.map(|p| {
-            let key = p.map(|c| (c / WELD).round() as i64);
-            let next = points.len() as u32;
-            *ids.entry(key).or_insert_with(|| {
-                points.push(p);
-                next
-            })
-        });
-        let n = triangle_normal(corners[0], corners[1], corners[2]);
-        let area2 = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-        if id[0] == id[1] || id[1] == id[2] || id[0] == id[2] || area2 <= 1e-10 {
-            report.degenerate += 1;
-            continue;
-        }
-        tris.push(id);
+        };
+        tris.push(welded.ids);
         index.push((t - first) as u32);
     }
     report.triangles = tris.len();
+    let points = weld.points;
 
     // Every triangle's edges as (low << 32 | high, triangle << 1 | runs low to high), sorted so
     // each edge's triangles lie together.
@@ -257,30 +242,6 @@ fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
 fn unit(v: [f64; 3]) -> Option<[f64; 3]> {
     let len = dot(v, v).sqrt();
     (len > 0.0 && len.is_finite()).then(|| v.map(|c| c / len))
-}
-
-/// Disjoint sets over `0..n`, with path halving.
-struct UnionFind(Vec<usize>);
-
-impl UnionFind {
-    fn new(n: usize) -> Self {
-        Self((0..n).collect())
-    }
-
-    fn find(&mut self, mut x: usize) -> usize {
-        while self.0[x] != x {
-            self.0[x] = self.0[self.0[x]];
-            x = self.0[x];
-        }
-        x
-    }
-
-    fn union(&mut self, a: usize, b: usize) {
-        let (a, b) = (self.find(a), self.find(b));
-        if a != b {
-            self.0[a.max(b)] = a.min(b);
-        }
-    }
 }
 
 #[cfg(test)]
